@@ -1,0 +1,30 @@
+#!/usr/bin/env bash
+# The test command: formatting, lints, the whole test suite, and the no_std build of the core
+# for the flight controller's Cortex-M4F. Safe to run again: every install step is idempotent.
+#
+#   ./ci.sh          all jobs
+#   ./ci.sh JOB ...  some of: setup fmt clippy test nostd
+set -euo pipefail
+cd "$(dirname "$0")"
+
+setup() {
+    # The toolchain itself comes from rust-toolchain.toml; add what a fresh machine lacks.
+    rustup component add rustfmt clippy >/dev/null
+    rustup target add thumbv7em-none-eabihf >/dev/null
+}
+
+fmt() { cargo fmt --all -- --check; }
+
+clippy() { cargo clippy --workspace --all-targets -- -D warnings; }
+
+test() { cargo test --workspace; }
+
+nostd() { cargo build -p estimator-core --target thumbv7em-none-eabihf --release; }
+
+jobs=("$@")
+[ ${#jobs[@]} -gt 0 ] || jobs=(setup fmt clippy test nostd)
+for job in "${jobs[@]}"; do
+    echo "== ci: $job"
+    "$job"
+done
+echo "== ci: all jobs passed"

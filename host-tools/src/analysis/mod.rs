@@ -1,0 +1,3 @@
+//! The paper's analyses of a dataset.
+
+pub mod superposition;

@@ -1,0 +1,9 @@
+//! The workspace's integration tests: one binary, one module per topic.
+#![allow(missing_docs)]
+
+// Reading and writing the dataset format (shared/spec/dataset-format.md): round trips and
+// every error class.
+mod dataset;
+
+// The synthetic wind tunnel: determinism, Table 1 on the default campaign, effects.
+mod tunnel;
