@@ -19,7 +19,10 @@ clippy() { cargo clippy --workspace --all-targets -- -D warnings; }
 
 test() { cargo test --workspace; }
 
-nostd() { cargo build -p estimator-core --target thumbv7em-none-eabihf --release; }
+nostd() {
+    cargo build -p estimator-core --target thumbv7em-none-eabihf --release
+    cargo build -p estimator-core --target thumbv7em-none-eabihf --release --features defmt
+}
 
 jobs=("$@")
 [ ${#jobs[@]} -gt 0 ] || jobs=(setup fmt clippy test nostd)

@@ -1,0 +1,201 @@
+//! The coefficient set: every table the estimator needs, fitted on the host (`host-tools fit`)
+//! and either compiled in as const tables (`coeffs::generated`) or loaded from a postcard blob
+//! ([`crate::blob`]).
+//!
+//! Sizes are fixed at compile time; a fit that needs fewer entries leaves the rest zero (unused
+//! pressure-model modes are zero rows and columns, unused sparse terms are zero terms past
+//! `n_terms`).
+
+use serde::{Deserialize, Serialize};
+
+use crate::sparse::SparseModel;
+
+/// Version of the coefficient-set layout. Bump it whenever a field or a size changes.
+pub const SCHEMA_VERSION: u16 = 1;
+
+/// Number of upper-surface pressure taps.
+pub const N_TAPS: usize = 12;
+
+/// Largest rank of the reduced, time-shifted pressure model.
+pub const PRESSURE_RANK: usize = 10;
+
+/// Inputs of the pressure model: `[phi_rad, phi_dot_rad_s, cmu_port, cmu_stbd, 1]`.
+pub const N_PRESSURE_INPUTS: usize = 5;
+
+/// Largest number of angle-of-attack breakpoints of the eGK schedule.
+pub const N_ALPHA: usize = 4;
+
+/// Largest number of terms of a sparse model.
+pub const MAX_TERMS: usize = 16;
+
+/// Largest power of one variable in a sparse term (the estimator tabulates powers up to it;
+/// paper eq. 12 uses cubes).
+pub const MAX_POWER: usize = 3;
+
+/// Largest number of variables of a sparse model.
+pub const MAX_VARS: usize = 6;
+
+/// Variables of the plant model (paper eq. 5): `[C_l,AFC, Cmu, dCmu, alpha_rad]`.
+pub const N_PLANT_VARS: usize = 4;
+
+/// Variables of the coupling operator (paper eqs. 9-11):
+/// `[C_l,roll, C_l,AFC, alpha_rad, Cmu, dCmu, phi_rad]`.
+pub const N_COUPLING_VARS: usize = 6;
+
+/// Index of each plant variable.
+pub mod plant_var {
+    /// The side's actuation roll moment at step k.
+    pub const CL_AFC: usize = 0;
+    /// The side's momentum coefficient at step k.
+    pub const CMU: usize = 1;
+    /// Its increment `Cmu[k] - Cmu[k-1]`.
+    pub const DCMU: usize = 2;
+    /// Angle of attack, rad.
+    pub const ALPHA: usize = 3;
+}
+
+/// Index of each coupling variable.
+pub mod coupling_var {
+    /// Disturbance-model roll moment.
+    pub const CL_ROLL: usize = 0;
+    /// Plant-model roll moment (both sides).
+    pub const CL_AFC: usize = 1;
+    /// Angle of attack, rad.
+    pub const ALPHA: usize = 2;
+    /// Total momentum coefficient (port + starboard).
+    pub const CMU: usize = 3;
+    /// Its increment.
+    pub const DCMU: usize = 4;
+    /// Roll angle, rad (its indicator gates terms on roll motion).
+    pub const PHI: usize = 5;
+}
+
+/// The whole coefficient set.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CoefficientSet {
+    /// Layout version; must equal [`SCHEMA_VERSION`].
+    pub schema_version: u16,
+    /// Fixed step, s.
+    pub dt_s: f32,
+    /// Roll-rate and roll-acceleration differentiators.
+    pub rate_filter: RateFilter,
+    /// Angle-of-attack breakpoints of the eGK schedule, deg, ascending; `n_alpha` are used.
+    pub alpha_schedule_deg: [f32; N_ALPHA],
+    /// Number of used breakpoints (at least 1).
+    pub n_alpha: u8,
+    /// eGK parameters at each breakpoint (linearly interpolated in alpha, held outside).
+    pub egk: [EgkParams; N_ALPHA],
+    /// Time-shifted pressure model, its steady-state Kalman filter and the map to C_l.
+    pub pressure: PressureModel,
+    /// Fusion of the eGK and pressure estimates.
+    pub fusion: FusionParams,
+    /// Plant models of the port and starboard jets (paper eq. 5).
+    pub plant: [SparseModel; 2],
+    /// Coupling operator (paper eqs. 9-11).
+    pub coupling: SparseModel,
+    /// Feedforward and feedback controller blocks.
+    pub controller: ControllerParams,
+}
+
+/// First-order filtered differentiators for the roll rate and acceleration from the encoder:
+/// `y[k] = p y[k-1] + (1 - p) (u[k] - u[k-1]) / dt` with the pole `p = exp(-2 pi f_c dt)`
+/// computed on the host.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct RateFilter {
+    /// Pole of the roll-rate differentiator.
+    pub rate_pole: f32,
+    /// Pole of the roll-acceleration differentiator.
+    pub accel_pole: f32,
+}
+
+/// Parameters of the extended Goman-Khrabrov model at one angle of attack.
+///
+/// Two flow states (port and starboard vortex), each `tau1 x' + x = x0(a - tau2 a')` at its
+/// half-wing's effective incidence `a = atan(tan alpha cos phi) -+ kb asin(sin alpha sin phi)`,
+/// with `x0(a) = (1 - tanh(k (a - a*))) / 2`; the output map is
+/// `C_l = C_l,beta beta + C_l,p p_hat + C_l,pdot p_hat_dot + K_v (x_L - x_R) + C_l,0`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct EgkParams {
+    /// Relaxation time, s (> 0).
+    pub tau1_s: f32,
+    /// Input delay, s (>= 0).
+    pub tau2_s: f32,
+    /// Breakdown incidence a*, deg.
+    pub breakdown_deg: f32,
+    /// Steepness k of the breakdown curve, per deg.
+    pub steepness_per_deg: f32,
+    /// Sideslip-to-incidence gain kb of each half-wing.
+    pub sideslip_gain: f32,
+    /// Sideslip derivative C_l,beta, per rad.
+    pub clbeta_per_rad: f32,
+    /// Roll damping C_l,p per unit `p_hat = p b / (2 U)`.
+    pub clp: f32,
+    /// Roll-acceleration derivative per unit `p_hat_dot = p_dot (b / (2 U))^2`.
+    pub clpdot: f32,
+    /// Vortex-asymmetry gain K_v.
+    pub vortex_gain: f32,
+    /// Constant offset C_l,0.
+    pub bias: f32,
+    /// `b / (2 U)`, s: converts the roll rate to `p_hat`.
+    pub half_span_time_s: f32,
+}
+
+/// The time-shifted (delay-embedded), reduced linear model of the 12 pressure coefficients
+/// with control inputs (DMDc; Brunton et al. 2016, Proctor et al. 2016), its steady-state
+/// Kalman gain and the linear map to C_l (domain-models.md section 3).
+///
+/// Reduced state `a`: `a[k+1] = A a[k] + B u[k]`, measured pressures
+/// `Cp[k] = C a[k] + cp_mean + v`; update `a = a_pred + K (Cp - C a_pred - cp_mean)` channel by
+/// channel; `C_l,p = w . (C a + cp_mean) + w0`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PressureModel {
+    /// Number of used modes (at most [`PRESSURE_RANK`]).
+    pub rank: u8,
+    /// State matrix `A`, rows by columns.
+    pub a: [[f32; PRESSURE_RANK]; PRESSURE_RANK],
+    /// Input matrix `B`.
+    pub b: [[f32; N_PRESSURE_INPUTS]; PRESSURE_RANK],
+    /// Output matrix `C` (tap by mode): the newest pressure block of the time-shifted state.
+    pub c: [[f32; PRESSURE_RANK]; N_TAPS],
+    /// Mean pressure coefficient of each tap.
+    pub cp_mean: [f32; N_TAPS],
+    /// Steady-state Kalman gain `K` (mode by tap), from the DARE solved on the host.
+    pub gain: [[f32; N_TAPS]; PRESSURE_RANK],
+    /// Standard deviation of each tap's innovation at steady state.
+    pub innovation_std: [f32; N_TAPS],
+    /// Innovation gate, in standard deviations: a larger innovation is rejected and flagged.
+    pub gate_sigma: f32,
+    /// Consecutive rejections after which a channel is isolated as faulty.
+    pub isolate_after: u16,
+    /// Map from filtered pressures to C_l.
+    pub cl_weights: [f32; N_TAPS],
+    /// Offset of that map.
+    pub cl_offset: f32,
+}
+
+/// The fusion filter (domain-models.md section 4, design B): the error of the eGK estimate is
+/// a first-order Gauss-Markov state `e[k+1] = rho e[k] + w`, observed by the pressure path as
+/// `C_l,p - C_l,eGK = e + v`; `C_l,roll = C_l,eGK + e_hat`. The pressure path carries the trend
+/// and bias, the eGK the fast content.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct FusionParams {
+    /// Correlation of the eGK error from step to step, `exp(-dt / T_e)`.
+    pub rho: f32,
+    /// Steady-state Kalman gain of the scalar filter.
+    pub gain: f32,
+}
+
+/// Feedforward and feedback controller blocks (paper Fig. 4, King/Williams architecture).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ControllerParams {
+    /// Pole `exp(-dt / T_F)` of the first-order causality filter on the feedforward target.
+    pub causality_pole: f32,
+    /// Proportional gain of the feedback on the measured roll moment, Cl per Cl.
+    pub feedback_kp: f32,
+    /// Integral gain of the feedback, Cl per (Cl s).
+    pub feedback_ki: f32,
+    /// Largest momentum coefficient of each jet.
+    pub cmu_max: f32,
+    /// Bisection iterations of the per-step plant inversion.
+    pub inversion_iterations: u8,
+}

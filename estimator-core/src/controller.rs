@@ -1,0 +1,203 @@
+//! Controller blocks of the paper's Fig. 4 (King et al.; Williams et al.): a feedforward that
+//! cancels the estimated disturbance moment through the inverted plant model with a causality
+//! filter, `K_d = -F G_p^-1 G_d`, and a PI feedback on the measured roll moment
+//! (domain-models.md section 8).
+//!
+//! The plant is the nonlinear SINDy difference equation, so it is inverted numerically at each
+//! step: the jet's Cmu in `[0, Cmu_max]` whose next-step moment meets the demand, by bisection
+//! with a fixed number of iterations (bounded time, no panic). Blowing is one-signed per jet, so
+//! a signed moment demand goes to the jet whose effect has its sign; the other jet is off.
+
+use crate::coeffs::{CoefficientSet, ControllerParams};
+use crate::health::Health;
+use crate::plant::Plant;
+
+/// Inputs of one controller step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ControllerInput {
+    /// Disturbance moment to cancel (the estimator's `C_l,roll`, with or without the coupling
+    /// correction, as the caller chooses).
+    pub disturbance_cl: f32,
+    /// Measured roll moment for the feedback (NaN when not measured this step).
+    pub measured_cl: f32,
+    /// Angle of attack, rad.
+    pub alpha_rad: f32,
+}
+
+/// Output of one controller step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Demand {
+    /// Cmu demand of the port and starboard jets.
+    pub cmu: [f32; 2],
+    /// Total actuation moment demanded for the next step.
+    pub moment: f32,
+}
+
+/// The controller's state: the causality filter and the feedback integrator.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Controller {
+    filtered_target: f32,
+    integral: f32,
+}
+
+impl Controller {
+    /// At rest.
+    #[must_use]
+    pub const fn new() -> Self {
+        Self { filtered_target: 0.0, integral: 0.0 }
+    }
+
+    /// One step with the plants' current states. `feedforward` and `feedback` switch the two
+    /// blocks (the SIL harness compares them).
+    pub fn step(
+        &mut self,
+        set: &CoefficientSet,
+        plants: &[Plant; 2],
+        input: &ControllerInput,
+        blocks: Blocks,
+        health: &mut Health,
+    ) -> Demand {
+        let params = &set.controller;
+        let target = if blocks.feedforward && input.disturbance_cl.is_finite() { -input.disturbance_cl } else { 0.0 };
+        self.filtered_target = params.causality_pole * self.filtered_target + (1.0 - params.causality_pole) * target;
+        let error = if blocks.feedback { -input.measured_cl } else { 0.0 };
+        if blocks.feedback && !error.is_finite() {
+            health.set(Health::FEEDBACK_HELD);
+        }
+        let error = if error.is_finite() { error } else { 0.0 };
+        let moment = self.filtered_target + params.feedback_kp * error + params.feedback_ki * self.integral;
+        let (cmu, saturated) = allocate(set, plants, moment, input.alpha_rad);
+        if saturated {
+            health.set(Health::CMU_SATURATED);
+        } else {
+            // Conditional integration: the integrator stops while the jets saturate.
+            self.integral += error * set.dt_s;
+        }
+        if !(self.filtered_target.is_finite() && self.integral.is_finite()) {
+            *self = Self::new();
+            health.set(Health::STATE_RESET);
+        }
+        Demand { cmu, moment }
+    }
+}
+
+/// Which controller blocks are on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Blocks {
+    /// Feedforward from the disturbance estimate.
+    pub feedforward: bool,
+    /// Feedback on the measured roll moment.
+    pub feedback: bool,
+}
+
+/// Chooses the jet and its Cmu for a total next-step moment `demand`; returns the demands and
+/// whether the chosen jet saturated.
+fn allocate(set: &CoefficientSet, plants: &[Plant; 2], demand: f32, alpha_rad: f32) -> ([f32; 2], bool) {
+    let params = &set.controller;
+    let next = |side: usize, cmu: f32| set.plant[side].eval(&plants[side].variables(cmu, alpha_rad));
+    let coasting = [next(0, 0.0), next(1, 0.0)];
+    let mut best: Option<(usize, f32)> = None;
+    for side in 0..2 {
+        let authority = next(side, params.cmu_max) - coasting[side];
+        let wanted = demand - coasting[0] - coasting[1];
+        if authority * wanted > 0.0 && best.is_none_or(|(_, best_authority)| authority.abs() > best_authority.abs()) {
+            best = Some((side, authority));
+        }
+    }
+    let Some((side, _)) = best else { return ([0.0; 2], false) };
+    let target = demand - coasting[1 - side];
+    let (cmu, saturated) = invert(params, |cmu| next(side, cmu), target);
+    let mut cmu_pair = [0.0; 2];
+    cmu_pair[side] = cmu;
+    (cmu_pair, saturated)
+}
+
+/// Bisection for `f(cmu) = target` on `[0, Cmu_max]`, assuming `f` monotonic there; a target out
+/// of reach gives the nearer end of the range, reported as saturated.
+fn invert(params: &ControllerParams, f: impl Fn(f32) -> f32, target: f32) -> (f32, bool) {
+    let (mut low, mut high) = (0.0f32, params.cmu_max.max(0.0));
+    let (f_low, f_high) = (f(low) - target, f(high) - target);
+    if !(f_low.is_finite() && f_high.is_finite()) {
+        return (0.0, true);
+    }
+    if f_low * f_high > 0.0 {
+        return if f_low.abs() <= f_high.abs() { (low, true) } else { (high, true) };
+    }
+    let rising = f_high > f_low;
+    for _ in 0..params.inversion_iterations {
+        let middle = 0.5 * (low + high);
+        if (f(middle) - target > 0.0) == rising {
+            high = middle;
+        } else {
+            low = middle;
+        }
+    }
+    (0.5 * (low + high), false)
+}
+
+#[cfg(test)]
+#[allow(clippy::needless_range_loop)] // Index loops read like the matrix formulas they check.
+mod tests {
+    use super::*;
+    use crate::prior::PRIOR;
+
+    const FEEDFORWARD: Blocks = Blocks { feedforward: true, feedback: false };
+
+    fn next_moment(plants: &[Plant; 2], cmu: [f32; 2]) -> f32 {
+        (0..2).map(|side| PRIOR.plant[side].eval(&plants[side].variables(cmu[side], 0.0))).sum()
+    }
+
+    #[test]
+    fn demand_within_reach_is_met_by_the_jet_of_its_sign() {
+        let plants = [Plant::new(); 2];
+        for (demand, side) in [(1e-4f32, 0usize), (-1e-4, 1)] {
+            let (cmu, saturated) = allocate(&PRIOR, &plants, demand, 0.0);
+            assert!(!saturated);
+            assert_eq!(cmu[1 - side], 0.0, "blowing is one-signed per jet: the other jet is off");
+            assert!(cmu[side] > 0.0 && cmu[side] <= PRIOR.controller.cmu_max);
+            // 16 bisection steps resolve Cmu to 0.009 / 2^16, far below the demand's scale.
+            assert!((next_moment(&plants, cmu) - demand).abs() < 1e-8, "{cmu:?}");
+        }
+    }
+
+    #[test]
+    fn demand_out_of_reach_saturates_at_the_largest_cmu() {
+        let plants = [Plant::new(); 2];
+        let (cmu, saturated) = allocate(&PRIOR, &plants, 0.5, 0.0);
+        assert!(saturated);
+        assert_eq!(cmu, [PRIOR.controller.cmu_max, 0.0]);
+        assert_eq!(allocate(&PRIOR, &plants, 0.0, 0.0), ([0.0; 2], false));
+    }
+
+    #[test]
+    fn feedforward_cancels_a_steady_disturbance_through_the_causality_filter() {
+        let mut controller = Controller::new();
+        let mut plants = [Plant::new(); 2];
+        let input = ControllerInput { disturbance_cl: -0.004, measured_cl: f32::NAN, alpha_rad: 0.0 };
+        let mut cl_afc = 0.0;
+        for _ in 0..3000 {
+            let demand = controller.step(&PRIOR, &plants, &input, FEEDFORWARD, &mut Health::default());
+            cl_afc = 0.0;
+            for side in 0..2 {
+                cl_afc += plants[side].step(&PRIOR.plant[side], demand.cmu[side], 0.0).0;
+            }
+        }
+        assert!((cl_afc - 0.004).abs() < 1e-5, "the jets cancel the disturbance: {cl_afc}");
+    }
+
+    #[test]
+    fn feedback_integrates_and_holds_without_a_measurement() {
+        let mut controller = Controller::new();
+        let plants = [Plant::new(); 2];
+        let blocks = Blocks { feedforward: false, feedback: true };
+        let measured = ControllerInput { disturbance_cl: 0.0, measured_cl: -1e-4, alpha_rad: 0.0 };
+        let first = controller.step(&PRIOR, &plants, &measured, blocks, &mut Health::default());
+        let second = controller.step(&PRIOR, &plants, &measured, blocks, &mut Health::default());
+        assert!(second.moment > first.moment && first.moment > 0.0, "{first:?} {second:?}");
+        let mut health = Health::default();
+        let missing = ControllerInput { measured_cl: f32::NAN, ..measured };
+        let held = controller.step(&PRIOR, &plants, &missing, blocks, &mut health);
+        assert!(health.has(Health::FEEDBACK_HELD));
+        assert!((held.moment - PRIOR.controller.feedback_ki * 2.0 * 1e-4 * PRIOR.dt_s).abs() < 1e-9);
+    }
+}

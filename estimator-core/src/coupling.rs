@@ -1,0 +1,46 @@
+//! The coupling operator of the paper's eqs. 8-10: the correction of the linear superposition,
+//! `C_l = C_l,roll + C_l,AFC + Xi Theta(C_l,roll, C_l,AFC, alpha, Cmu, dCmu, phi)`, whose terms
+//! are gated by anti-Dirac indicators so that it vanishes without blowing or without roll
+//! (paper eq. 11 and its admissibility rules).
+
+use crate::coeffs::{MAX_VARS, coupling_var};
+use crate::sparse::SparseModel;
+
+/// Inputs of the coupling operator.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CouplingInput {
+    /// Disturbance-model roll moment.
+    pub cl_roll: f32,
+    /// Plant-model roll moment (both jets).
+    pub cl_afc: f32,
+    /// Angle of attack, rad.
+    pub alpha_rad: f32,
+    /// Total momentum coefficient (port + starboard).
+    pub cmu: f32,
+    /// Its increment over the step.
+    pub dcmu: f32,
+    /// Roll angle, rad.
+    pub phi_rad: f32,
+}
+
+impl CouplingInput {
+    /// The variable vector in the order of [`coupling_var`].
+    #[must_use]
+    pub fn variables(&self) -> [f32; MAX_VARS] {
+        let mut vars = [0.0; MAX_VARS];
+        vars[coupling_var::CL_ROLL] = self.cl_roll;
+        vars[coupling_var::CL_AFC] = self.cl_afc;
+        vars[coupling_var::ALPHA] = self.alpha_rad;
+        vars[coupling_var::CMU] = self.cmu;
+        vars[coupling_var::DCMU] = self.dcmu;
+        vars[coupling_var::PHI] = self.phi_rad;
+        vars
+    }
+}
+
+/// The correction `Xi Theta(...)`; zero when it is not finite (flagged by the caller).
+#[must_use]
+pub fn correction(model: &SparseModel, input: &CouplingInput) -> Option<f32> {
+    let value = model.eval(&input.variables());
+    value.is_finite().then_some(value)
+}

@@ -1,0 +1,337 @@
+//! The fixed-step estimator: one call per sample runs every stage in order.
+//!
+//! 1. inputs: validate, hold the last valid value of a missing one, clamp to physical ranges;
+//! 2. roll rate and acceleration from the encoder ([`crate::rate`]);
+//! 3. eGK ([`crate::egk`]);
+//! 4. pressure model and Kalman filter ([`crate::pressure`]);
+//! 5. fusion into `C_l,roll` ([`crate::fusion`]);
+//! 6. plant of each jet, `C_l,AFC` ([`crate::plant`]);
+//! 7. linear superposition and the coupling operator ([`crate::coupling`]).
+
+use crate::coeffs::{CoefficientSet, N_PRESSURE_INPUTS, N_TAPS};
+use crate::coupling::{CouplingInput, correction};
+use crate::egk::{Egk, EgkInput};
+use crate::fusion::Fusion;
+use crate::health::Health;
+use crate::plant::Plant;
+use crate::pressure::PressureFilter;
+use crate::rate::{RateEstimator, RollRates};
+
+/// Largest |roll angle| accepted, deg (beyond it the input is clamped and flagged).
+const PHI_LIMIT_DEG: f32 = 90.0;
+/// Largest |angle of attack| accepted, deg.
+const ALPHA_LIMIT_DEG: f32 = 60.0;
+/// Largest Cmu accepted (far beyond any trailing-edge jet).
+const CMU_LIMIT: f32 = 0.1;
+
+/// The measurements of one step. Any value may be NaN (not measured this step).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Input {
+    /// Roll angle, deg (positive starboard wing down).
+    pub phi_deg: f32,
+    /// Angle of attack, deg.
+    pub alpha_deg: f32,
+    /// Momentum coefficient of the port jet.
+    pub cmu_port: f32,
+    /// Momentum coefficient of the starboard jet.
+    pub cmu_stbd: f32,
+    /// Pressure coefficients `cp01`..`cp12`.
+    pub cp: [f32; N_TAPS],
+}
+
+/// The estimates of one step.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Output {
+    /// `C_l,roll` of the eGK alone.
+    pub cl_egk: f32,
+    /// `C_l,roll` of the pressure path alone.
+    pub cl_pressure: f32,
+    /// `C_l,roll`: the fused disturbance estimate.
+    pub cl_roll: f32,
+    /// `C_l,AFC` of the port jet.
+    pub cl_afc_port: f32,
+    /// `C_l,AFC` of the starboard jet.
+    pub cl_afc_stbd: f32,
+    /// `C_l,AFC = port + starboard`.
+    pub cl_afc: f32,
+    /// Linear superposition `C_l,roll + C_l,AFC`.
+    pub cl_linear: f32,
+    /// The coupling operator's correction.
+    pub coupling: f32,
+    /// `C_l` with the coupling operator: `C_l,linear + coupling`.
+    pub cl: f32,
+    /// Filtered roll rate, rad/s.
+    pub phi_dot_rad_s: f32,
+    /// What was missing, rejected, held or reset.
+    pub health: Health,
+}
+
+/// Inputs after validation: finite and in range.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Held {
+    phi_deg: f32,
+    alpha_deg: f32,
+    cmu: [f32; 2],
+}
+
+/// The estimator: its coefficient tables (borrowed, so that const tables stay in flash) and
+/// the state of every stage. It lives in a `static` on the target: [`Estimator::new`] is
+/// `const`, and the size is fixed at compile time.
+#[derive(Debug, Clone)]
+pub struct Estimator<'a> {
+    set: &'a CoefficientSet,
+    held: Held,
+    rates: RateEstimator,
+    egk: Egk,
+    pressure: PressureFilter,
+    fusion: Fusion,
+    plants: [Plant; 2],
+    last_cmu_total: f32,
+    /// `1 / dt`, Hz.
+    rate_hz: f32,
+}
+
+impl<'a> Estimator<'a> {
+    /// A fresh estimator over the given tables (validate a loaded set with
+    /// [`crate::blob::validate`] first; the step stays panic-free with any tables).
+    #[must_use]
+    pub const fn new(set: &'a CoefficientSet) -> Self {
+        Self {
+            set,
+            held: Held { phi_deg: 0.0, alpha_deg: set.alpha_schedule_deg[0], cmu: [0.0; 2] },
+            rates: RateEstimator::new(),
+            egk: Egk::new(),
+            pressure: PressureFilter::new(&set.pressure),
+            fusion: Fusion::new(),
+            plants: [Plant::new(); 2],
+            last_cmu_total: 0.0,
+            rate_hz: 1.0 / set.dt_s,
+        }
+    }
+
+    /// The coefficient tables.
+    #[must_use]
+    pub const fn coefficients(&self) -> &'a CoefficientSet {
+        self.set
+    }
+
+    /// The plants' states (for the controller blocks).
+    #[must_use]
+    pub const fn plants(&self) -> &[Plant; 2] {
+        &self.plants
+    }
+
+    /// Returns to the state of [`Estimator::new`].
+    pub fn reset(&mut self) {
+        *self = Self::new(self.set);
+    }
+
+    /// One fixed step. Never panics; a missing or non-finite input is held and flagged, and no
+    /// NaN or infinity reaches the state.
+    pub fn step(&mut self, input: &Input) -> Output {
+        let set = self.set;
+        let mut health = Health::default();
+        self.validate(input, &mut health);
+        let phi_rad = self.held.phi_deg.to_radians();
+        let alpha_rad = self.held.alpha_deg.to_radians();
+        let rates = self.rates.step(&set.rate_filter, self.rate_hz, phi_rad);
+        let (cl_egk, egk_reset) = self.egk.step(set, &self.egk_input(phi_rad, &rates));
+        let pressure_inputs = self.pressure_inputs(phi_rad, &rates);
+        let pressure = self.pressure.step(&set.pressure, &pressure_inputs, &input.cp, &mut health);
+        if !pressure.measured {
+            health.set(Health::PRESSURE_UNUSED);
+        }
+        let (cl_roll, fusion_reset) = self.fusion.step(&set.fusion, cl_egk, pressure.measured.then_some(pressure.cl));
+        let (cl_afc_port, port_reset) = self.plants[0].step(&set.plant[0], self.held.cmu[0], alpha_rad);
+        let (cl_afc_stbd, stbd_reset) = self.plants[1].step(&set.plant[1], self.held.cmu[1], alpha_rad);
+        if egk_reset || fusion_reset || port_reset || stbd_reset {
+            health.set(Health::STATE_RESET);
+        }
+        let cl_afc = cl_afc_port + cl_afc_stbd;
+        let cmu_total = self.held.cmu[0] + self.held.cmu[1];
+        let coupling_input = CouplingInput {
+            cl_roll,
+            cl_afc,
+            alpha_rad,
+            cmu: cmu_total,
+            dcmu: cmu_total - self.last_cmu_total,
+            phi_rad,
+        };
+        self.last_cmu_total = cmu_total;
+        let coupling = correction(&set.coupling, &coupling_input).unwrap_or_else(|| {
+            health.set(Health::STATE_RESET);
+            0.0
+        });
+        let cl_linear = cl_roll + cl_afc;
+        Output {
+            cl_egk,
+            cl_pressure: pressure.cl,
+            cl_roll,
+            cl_afc_port,
+            cl_afc_stbd,
+            cl_afc,
+            cl_linear,
+            coupling,
+            cl: cl_linear + coupling,
+            phi_dot_rad_s: rates.phi_dot_rad_s,
+            health,
+        }
+    }
+
+    /// Holds the last valid value of a missing input and clamps out-of-range ones.
+    fn validate(&mut self, input: &Input, health: &mut Health) {
+        let mut take = |value: f32, limit: f32, low: f32, held: &mut f32, missing_flag: u16| {
+            if !value.is_finite() {
+                health.set(missing_flag);
+            } else if value < low || value > limit {
+                health.set(Health::INPUT_CLAMPED);
+                *held = value.clamp(low, limit);
+            } else {
+                *held = value;
+            }
+        };
+        take(input.phi_deg, PHI_LIMIT_DEG, -PHI_LIMIT_DEG, &mut self.held.phi_deg, Health::PHI_HELD);
+        take(input.alpha_deg, ALPHA_LIMIT_DEG, -ALPHA_LIMIT_DEG, &mut self.held.alpha_deg, Health::ALPHA_HELD);
+        take(input.cmu_port, CMU_LIMIT, 0.0, &mut self.held.cmu[0], Health::CMU_HELD);
+        take(input.cmu_stbd, CMU_LIMIT, 0.0, &mut self.held.cmu[1], Health::CMU_HELD);
+    }
+
+    fn egk_input(&self, phi_rad: f32, rates: &RollRates) -> EgkInput {
+        EgkInput {
+            phi_rad,
+            phi_dot_rad_s: rates.phi_dot_rad_s,
+            phi_ddot_rad_s2: rates.phi_ddot_rad_s2,
+            alpha_deg: self.held.alpha_deg,
+        }
+    }
+
+    /// `[phi_rad, phi_dot_rad_s, cmu_port, cmu_stbd, 1]`.
+    fn pressure_inputs(&self, phi_rad: f32, rates: &RollRates) -> [f32; N_PRESSURE_INPUTS] {
+        [phi_rad, rates.phi_dot_rad_s, self.held.cmu[0], self.held.cmu[1], 1.0]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::prior::full_size_fixture;
+    use proptest::prelude::*;
+
+    /// Steps after which an estimator that saw garbage agrees with a fresh one fed the same
+    /// normal input: the slowest mode is the eGK lag (tau1 = 0.15 s, 20 time constants).
+    const RECOVERY_STEPS: usize = 3000;
+
+    fn normal_input(step: usize) -> Input {
+        let t = step as f32 * 1e-3;
+        let phi_deg = 20.0 * libm::sinf(core::f32::consts::TAU * 0.8 * t);
+        let cmu_port = if (step / 700).is_multiple_of(2) { 0.0 } else { 0.006 };
+        let cp = core::array::from_fn(|tap| -0.3 + 0.02 * tap as f32 + 0.01 * libm::sinf(t * (tap as f32 + 1.0)));
+        Input { phi_deg, alpha_deg: 10.0, cmu_port, cmu_stbd: 0.0, cp }
+    }
+
+    fn outputs(output: &Output) -> [f32; 9] {
+        [
+            output.cl_egk,
+            output.cl_pressure,
+            output.cl_roll,
+            output.cl_afc_port,
+            output.cl_afc_stbd,
+            output.cl_afc,
+            output.cl_linear,
+            output.coupling,
+            output.cl,
+        ]
+    }
+
+    fn wild_value() -> impl Strategy<Value = f32> {
+        prop_oneof![
+            Just(f32::NAN),
+            Just(f32::INFINITY),
+            Just(f32::NEG_INFINITY),
+            Just(1e30f32),
+            Just(-1e30f32),
+            Just(f32::MAX),
+            Just(f32::MIN_POSITIVE),
+            -100.0f32..100.0,
+            any::<f32>(),
+        ]
+    }
+
+    fn wild_input() -> impl Strategy<Value = Input> {
+        (wild_value(), wild_value(), wild_value(), wild_value(), proptest::array::uniform12(wild_value())).prop_map(
+            |(phi_deg, alpha_deg, cmu_port, cmu_stbd, cp)| Input { phi_deg, alpha_deg, cmu_port, cmu_stbd, cp },
+        )
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+
+        /// Arbitrary input never panics and never leaves a non-finite output; normal input
+        /// afterwards brings every estimate back to a fresh estimator's within
+        /// `RECOVERY_STEPS` steps (3 s at 1 kHz), to 1e-4 in C_l.
+        #[test]
+        fn garbage_never_panics_and_the_estimate_recovers(garbage in proptest::collection::vec(wild_input(), 1..200)) {
+            let set = full_size_fixture();
+            let mut battered = Estimator::new(&set);
+            for input in &garbage {
+                let output = battered.step(input);
+                prop_assert!(outputs(&output).iter().all(|value| value.is_finite()), "{output:?}");
+            }
+            let mut fresh = Estimator::new(&set);
+            for step in 0..RECOVERY_STEPS {
+                let input = normal_input(step);
+                let (a, b) = (battered.step(&input), fresh.step(&input));
+                prop_assert!(outputs(&a).iter().all(|value| value.is_finite()));
+                if step + 1 == RECOVERY_STEPS {
+                    for (x, y) in outputs(&a).iter().zip(outputs(&b)) {
+                        prop_assert!((x - y).abs() < 1e-4, "{a:?}\nvs\n{b:?}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn missing_inputs_are_held_and_flagged() {
+        let set = full_size_fixture();
+        let mut estimator = Estimator::new(&set);
+        let _ = estimator.step(&normal_input(0));
+        let mut input = normal_input(1);
+        input.phi_deg = f32::NAN;
+        input.alpha_deg = f32::INFINITY;
+        input.cmu_port = f32::NAN;
+        input.cp[4] = f32::NAN;
+        let output = estimator.step(&input);
+        assert!(output.health.has(Health::PHI_HELD));
+        assert!(output.health.has(Health::ALPHA_HELD));
+        assert!(output.health.has(Health::CMU_HELD));
+        assert_eq!(output.health.cp_missing, 1 << 4);
+        let mut clamped = normal_input(2);
+        clamped.phi_deg = 500.0;
+        assert!(estimator.step(&clamped).health.has(Health::INPUT_CLAMPED));
+    }
+
+    #[test]
+    fn coupling_is_zero_without_blowing_or_without_roll() {
+        let set = full_size_fixture();
+        let mut estimator = Estimator::new(&set);
+        for step in 0..200 {
+            let mut input = normal_input(step);
+            input.cmu_port = 0.0;
+            assert_eq!(estimator.step(&input).coupling, 0.0, "no blowing: the gated operator is exactly zero");
+        }
+        let mut estimator = Estimator::new(&set);
+        for step in 0..200 {
+            let mut input = normal_input(step + 700);
+            input.phi_deg = 0.0;
+            assert_eq!(estimator.step(&input).coupling, 0.0, "no roll: the gated operator is exactly zero");
+        }
+    }
+
+    #[test]
+    fn estimator_fits_in_a_static() {
+        static SET: CoefficientSet = crate::prior::PRIOR;
+        static ESTIMATOR: Estimator<'static> = Estimator::new(&SET);
+        assert_eq!(ESTIMATOR.coefficients().dt_s, 1e-3);
+    }
+}

@@ -1,0 +1,382 @@
+//! The pressure path: a time-shifted (delay-embedded), reduced linear model of the 12 surface
+//! pressures with control inputs (DMDc), corrected every step by the measured pressures through
+//! a steady-state Kalman gain, then mapped linearly to `C_l,roll,p` (paper section III.A after
+//! B. W. Brunton et al., J. Neurosci. Methods 258, 2016; domain-models.md section 3).
+//!
+//! The gain `K` comes from the discrete algebraic Riccati equation solved in f64 on the host, so
+//! the target propagates no covariance: per step this is `A a + B u`, the 12 innovations, and
+//! `K nu` (Anderson & Moore, Optimal Filtering, ch. 4). Each channel is updated on its own:
+//! a missing channel (NaN) skips its update, and a channel whose innovation exceeds
+//! `gate_sigma` times its steady-state standard deviation is rejected and flagged; after
+//! `isolate_after` consecutive rejections it is isolated until it passes the gate as many times
+//! in a row.
+
+use crate::coeffs::{N_PRESSURE_INPUTS, N_TAPS, PRESSURE_RANK, PressureModel};
+use crate::health::Health;
+
+/// Largest magnitude a reduced state may reach before it is treated as diverged and reset.
+const STATE_LIMIT: f32 = 1.0e6;
+
+/// The pressure filter's state.
+///
+/// Loops run over the full [`PRESSURE_RANK`] (unused modes are zero rows and columns), so that
+/// they unroll and vectorise; `rank` only documents how many modes the fit used.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PressureFilter {
+    modes: [f32; PRESSURE_RANK],
+    /// `w^T C`: the roll-moment map applied to the modes directly, so the step does not rebuild
+    /// the 12 filtered pressures.
+    mode_weights: [f32; PRESSURE_RANK],
+    /// `w . cp_mean + w0`.
+    cl_constant: f32,
+    /// Consecutive rejections (or, for an isolated channel, consecutive passes) per channel.
+    streak: [u16; N_TAPS],
+    isolated: u16,
+}
+
+/// Result of one pressure step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PressureEstimate {
+    /// `C_l,roll,p` from the filtered pressures.
+    pub cl: f32,
+    /// True when at least one channel corrected the prediction this step.
+    pub measured: bool,
+}
+
+impl PressureFilter {
+    /// At the mean pressures, no channel isolated, for the given model.
+    #[must_use]
+    pub const fn new(model: &PressureModel) -> Self {
+        let mut mode_weights = [0.0; PRESSURE_RANK];
+        let mut cl_constant = model.cl_offset;
+        let mut tap = 0;
+        while tap < N_TAPS {
+            let mut mode = 0;
+            while mode < PRESSURE_RANK {
+                mode_weights[mode] += model.cl_weights[tap] * model.c[tap][mode];
+                mode += 1;
+            }
+            cl_constant += model.cl_weights[tap] * model.cp_mean[tap];
+            tap += 1;
+        }
+        Self { modes: [0.0; PRESSURE_RANK], mode_weights, cl_constant, streak: [0; N_TAPS], isolated: 0 }
+    }
+
+    /// The reduced state.
+    #[must_use]
+    pub const fn modes(&self) -> &[f32; PRESSURE_RANK] {
+        &self.modes
+    }
+
+    /// Predicts with the inputs `u`, corrects with the measured pressures `cp` and returns the
+    /// pressure-based roll moment. Channel bits of `health` are set here.
+    pub fn step(
+        &mut self,
+        model: &PressureModel,
+        inputs: &[f32; N_PRESSURE_INPUTS],
+        cp: &[f32; N_TAPS],
+        health: &mut Health,
+    ) -> PressureEstimate {
+        let predicted = predict(model, &self.modes, inputs);
+        let mut innovation = [0.0f32; N_TAPS];
+        let (mut finite_mask, mut pass_mask) = (0u16, 0u16);
+        for tap in 0..N_TAPS {
+            let bit = 1u16 << tap;
+            if !cp[tap].is_finite() {
+                health.cp_missing |= bit;
+                continue;
+            }
+            innovation[tap] = cp[tap] - (dot(&model.c[tap], &predicted) + model.cp_mean[tap]);
+            finite_mask |= bit;
+            if innovation[tap].abs() <= model.gate_sigma * model.innovation_std[tap] {
+                pass_mask |= bit;
+            }
+        }
+        // When every measured channel fails at once, the prediction is off (start-up, a jump of
+        // the inputs), not twelve sensors: accept them all rather than lose the filter.
+        if pass_mask == 0 {
+            pass_mask = finite_mask;
+        }
+        let used_mask = self.track_faults(model, finite_mask, pass_mask, health);
+        for (tap, value) in innovation.iter_mut().enumerate() {
+            if used_mask & (1 << tap) == 0 {
+                *value = 0.0;
+            }
+        }
+        let measured = used_mask != 0;
+        self.modes = predicted;
+        for (mode, gain_row) in self.modes.iter_mut().zip(&model.gain) {
+            *mode += dot(gain_row, &innovation);
+        }
+        if !self.modes.iter().all(|&mode| crate::bounded(mode, STATE_LIMIT)) {
+            self.modes = [0.0; PRESSURE_RANK];
+            health.set(Health::STATE_RESET);
+        }
+        health.cp_isolated = self.isolated;
+        PressureEstimate { cl: dot(&self.mode_weights, &self.modes) + self.cl_constant, measured }
+    }
+
+    /// Updates each measured channel's streak and isolation from whether it passed the gate,
+    /// flags rejections, and returns the channels that correct the prediction this step.
+    fn track_faults(&mut self, model: &PressureModel, finite_mask: u16, pass_mask: u16, health: &mut Health) -> u16 {
+        for tap in 0..N_TAPS {
+            let bit = 1u16 << tap;
+            if finite_mask & bit == 0 {
+                continue;
+            }
+            let passes = pass_mask & bit != 0;
+            let isolated = self.isolated & bit != 0;
+            let streak = &mut self.streak[tap];
+            // A rejection of a healthy channel, or a pass of an isolated one, extends the streak.
+            *streak = if passes == isolated { streak.saturating_add(1) } else { 0 };
+            if *streak >= model.isolate_after.max(1) {
+                self.isolated ^= bit;
+                *streak = 0;
+            }
+            if !passes {
+                health.cp_rejected |= bit;
+            }
+        }
+        pass_mask & !self.isolated
+    }
+}
+
+/// `A a + B u`.
+fn predict(
+    model: &PressureModel,
+    modes: &[f32; PRESSURE_RANK],
+    inputs: &[f32; N_PRESSURE_INPUTS],
+) -> [f32; PRESSURE_RANK] {
+    core::array::from_fn(|row| dot(&model.a[row], modes) + dot(&model.b[row], inputs))
+}
+
+/// Dot product with four partial sums, so that the additions do not form one long chain of
+/// dependent instructions (the fixed length unrolls completely).
+fn dot<const N: usize>(a: &[f32; N], b: &[f32; N]) -> f32 {
+    let mut partial = [0.0f32; 4];
+    for (idx, (x, y)) in a.iter().zip(b).enumerate() {
+        partial[idx % 4] += x * y;
+    }
+    (partial[0] + partial[1]) + (partial[2] + partial[3])
+}
+
+#[cfg(test)]
+#[allow(clippy::needless_range_loop)] // Index loops read like the matrix formulas they check.
+mod tests {
+    use super::*;
+    use crate::prior::PRIOR;
+
+    type Matrix = Vec<Vec<f64>>;
+
+    fn zeros(rows: usize, cols: usize) -> Matrix {
+        vec![vec![0.0; cols]; rows]
+    }
+
+    fn mul(a: &Matrix, b: &Matrix) -> Matrix {
+        let mut out = zeros(a.len(), b[0].len());
+        for i in 0..a.len() {
+            for j in 0..b[0].len() {
+                out[i][j] = (0..b.len()).map(|k| a[i][k] * b[k][j]).sum();
+            }
+        }
+        out
+    }
+
+    fn transpose(a: &Matrix) -> Matrix {
+        (0..a[0].len()).map(|j| (0..a.len()).map(|i| a[i][j]).collect()).collect()
+    }
+
+    fn add(a: &Matrix, b: &Matrix, sign: f64) -> Matrix {
+        a.iter().zip(b).map(|(ra, rb)| ra.iter().zip(rb).map(|(x, y)| x + sign * y).collect()).collect()
+    }
+
+    /// Gauss-Jordan inverse with partial pivoting (test reference only).
+    fn inverse(a: &Matrix) -> Matrix {
+        let n = a.len();
+        let mut work: Matrix = a
+            .iter()
+            .enumerate()
+            .map(|(i, row)| {
+                let mut extended = row.clone();
+                extended.extend((0..n).map(|j| f64::from(u8::from(i == j))));
+                extended
+            })
+            .collect();
+        for col in 0..n {
+            let pivot = (col..n).max_by(|&x, &y| work[x][col].abs().total_cmp(&work[y][col].abs())).unwrap();
+            work.swap(col, pivot);
+            let scale = work[col][col];
+            work[col].iter_mut().for_each(|value| *value /= scale);
+            for row in 0..n {
+                if row != col {
+                    let factor = work[row][col];
+                    let pivot_row = work[col].clone();
+                    work[row].iter_mut().zip(&pivot_row).for_each(|(value, p)| *value -= factor * p);
+                }
+            }
+        }
+        work.into_iter().map(|row| row[n..].to_vec()).collect()
+    }
+
+    /// A small deterministic generator (xorshift) and Box-Muller normals.
+    struct Noise(u64);
+
+    impl Noise {
+        fn uniform(&mut self) -> f64 {
+            self.0 ^= self.0 << 13;
+            self.0 ^= self.0 >> 7;
+            self.0 ^= self.0 << 17;
+            (self.0 >> 11) as f64 / (1u64 << 53) as f64
+        }
+
+        fn normal(&mut self) -> f64 {
+            let (u1, u2) = (self.uniform().max(1e-300), self.uniform());
+            (-2.0 * u1.ln()).sqrt() * (core::f64::consts::TAU * u2).cos()
+        }
+    }
+
+    const RANK: usize = 4;
+
+    /// A stable rank-4 system (two damped oscillators) observed by the 12 taps.
+    fn system(noise: &mut Noise) -> (Matrix, Matrix) {
+        let rotation = |radius: f64, angle: f64| {
+            [[radius * angle.cos(), -radius * angle.sin()], [radius * angle.sin(), radius * angle.cos()]]
+        };
+        let mut a = zeros(RANK, RANK);
+        for (block, (radius, angle)) in [(0.995, 0.02), (0.98, 0.07)].into_iter().enumerate() {
+            let r = rotation(radius, angle);
+            for i in 0..2 {
+                for j in 0..2 {
+                    a[2 * block + i][2 * block + j] = r[i][j];
+                }
+            }
+        }
+        let c = (0..N_TAPS).map(|_| (0..RANK).map(|_| noise.normal() * 0.3).collect()).collect();
+        (a, c)
+    }
+
+    /// The steady-state filter (the core, f32, with the converged gain) against the
+    /// time-varying Kalman filter (f64, covariance propagated from a large prior): once the
+    /// time-varying gain has converged, their estimates agree.
+    #[test]
+    fn steady_state_filter_matches_a_converged_time_varying_filter() {
+        let mut noise = Noise(0x1234_5678_9abc_def1);
+        let (a, c) = system(&mut noise);
+        let (q_std, r_std) = (0.01, 0.05);
+        let q: Matrix =
+            (0..RANK).map(|i| (0..RANK).map(|j| if i == j { q_std * q_std } else { 0.0 }).collect()).collect();
+        let r: Matrix =
+            (0..N_TAPS).map(|i| (0..N_TAPS).map(|j| if i == j { r_std * r_std } else { 0.0 }).collect()).collect();
+        // Riccati recursion of the prior covariance to convergence: the steady-state gain.
+        let gain_of = |p_prior: &Matrix| {
+            let innovation_cov = add(&mul(&mul(&c, p_prior), &transpose(&c)), &r, 1.0);
+            (mul(&mul(p_prior, &transpose(&c)), &inverse(&innovation_cov)), innovation_cov)
+        };
+        let update = |p_prior: &Matrix, gain: &Matrix| add(p_prior, &mul(&mul(gain, &c), p_prior), -1.0);
+        let mut p_prior: Matrix =
+            (0..RANK).map(|i| (0..RANK).map(|j| if i == j { 10.0 } else { 0.0 }).collect()).collect();
+        let initial_prior = p_prior.clone();
+        for _ in 0..5000 {
+            let (gain, _) = gain_of(&p_prior);
+            p_prior = add(&mul(&mul(&a, &update(&p_prior, &gain)), &transpose(&a)), &q, 1.0);
+        }
+        let (steady_gain, innovation_cov) = gain_of(&p_prior);
+
+        let mut model = PRIOR.pressure;
+        model.rank = RANK as u8;
+        model.gate_sigma = 1e6;
+        for i in 0..RANK {
+            for j in 0..RANK {
+                model.a[i][j] = a[i][j] as f32;
+            }
+            for tap in 0..N_TAPS {
+                model.gain[i][tap] = steady_gain[i][tap] as f32;
+            }
+        }
+        for tap in 0..N_TAPS {
+            model.c[tap][..RANK].iter_mut().zip(&c[tap]).for_each(|(dst, src)| *dst = *src as f32);
+            model.innovation_std[tap] = innovation_cov[tap][tap].sqrt() as f32;
+        }
+
+        let mut core = PressureFilter::new(&model);
+        let (mut truth, mut tv_state, mut tv_prior) = (vec![1.0, 0.0, -0.5, 0.5], vec![0.0; RANK], initial_prior);
+        let mut worst_late = 0.0f64;
+        for step in 0..1500 {
+            truth = mul(&a, &truth.iter().map(|&v| vec![v]).collect())
+                .into_iter()
+                .map(|row| row[0] + q_std * noise.normal())
+                .collect();
+            let measured: Vec<f64> = c
+                .iter()
+                .map(|row| row.iter().zip(&truth).map(|(x, y)| x * y).sum::<f64>() + r_std * noise.normal())
+                .collect();
+            // Time-varying filter: predict, gain from the propagated covariance, update.
+            let predicted: Vec<f64> = a.iter().map(|row| row.iter().zip(&tv_state).map(|(x, y)| x * y).sum()).collect();
+            if step > 0 {
+                tv_prior = add(&mul(&mul(&a, &tv_prior), &transpose(&a)), &q, 1.0);
+            }
+            let (gain, _) = gain_of(&tv_prior);
+            let innovation: Vec<f64> = (0..N_TAPS)
+                .map(|tap| measured[tap] - c[tap].iter().zip(&predicted).map(|(x, y)| x * y).sum::<f64>())
+                .collect();
+            tv_state = (0..RANK)
+                .map(|i| predicted[i] + (0..N_TAPS).map(|tap| gain[i][tap] * innovation[tap]).sum::<f64>())
+                .collect();
+            tv_prior = update(&tv_prior, &gain);
+
+            let cp: [f32; N_TAPS] = core::array::from_fn(|tap| measured[tap] as f32);
+            let _ = core.step(&model, &[0.0; N_PRESSURE_INPUTS], &cp, &mut Health::default());
+            if step >= 1000 {
+                for i in 0..RANK {
+                    worst_late = worst_late.max((f64::from(core.modes()[i]) - tv_state[i]).abs());
+                }
+            }
+        }
+        // State magnitude is about 1; the filters agree to f32 round-off plus the remaining
+        // difference of the time-varying gain from the steady one.
+        assert!(worst_late < 1e-4, "{worst_late}");
+    }
+
+    #[test]
+    fn missing_channel_skips_its_update_and_is_flagged() {
+        let model = crate::prior::full_size_fixture().pressure;
+        let mut with_gap = PressureFilter::new(&model);
+        let mut reference = PressureFilter::new(&model);
+        let mut cp = model.cp_mean;
+        cp[3] += 0.01;
+        let mut gap = cp;
+        gap[3] = f32::NAN;
+        let mut health = Health::default();
+        let _ = with_gap.step(&model, &[0.0; N_PRESSURE_INPUTS], &gap, &mut health);
+        // From rest, the prediction of every tap is its mean: measuring exactly that is a zero
+        // innovation.
+        let mut cp_without = cp;
+        cp_without[3] = model.cp_mean[3];
+        let _ = reference.step(&model, &[0.0; N_PRESSURE_INPUTS], &cp_without, &mut Health::default());
+        assert_eq!(health.cp_missing, 1 << 3);
+        assert_eq!(with_gap.modes(), reference.modes(), "a missing channel is a zero innovation");
+    }
+
+    #[test]
+    fn biased_channel_is_rejected_then_isolated_while_others_keep_correcting() {
+        let model = crate::prior::full_size_fixture().pressure;
+        let mut filter = PressureFilter::new(&model);
+        let mut cp = model.cp_mean;
+        cp[6] += 1.0;
+        let mut last = Health::default();
+        for step in 0..usize::from(model.isolate_after) + 5 {
+            last = Health::default();
+            let estimate = filter.step(&model, &[0.0; N_PRESSURE_INPUTS], &cp, &mut last);
+            assert!(estimate.measured && estimate.cl.is_finite());
+            assert_eq!(last.cp_rejected, 1 << 6, "step {step}");
+        }
+        assert_eq!(last.cp_isolated, 1 << 6);
+        // Back to normal: re-admitted after as many passes in a row.
+        cp[6] -= 1.0;
+        for _ in 0..usize::from(model.isolate_after) + 1 {
+            last = Health::default();
+            let _ = filter.step(&model, &[0.0; N_PRESSURE_INPUTS], &cp, &mut last);
+        }
+        assert_eq!(last.cp_isolated, 0);
+    }
+}

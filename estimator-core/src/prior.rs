@@ -1,0 +1,161 @@
+//! The physical prior: a coefficient set built from the paper's geometry and published
+//! magnitudes (domain-models.md sections 2, 7 and 9), before any fit.
+//!
+//! It is the starting point of the host's Levenberg-Marquardt fit of the eGK and a complete,
+//! valid set for tests; the tables that fly are fitted (`host-tools fit`) and generated
+//! (`host-tools codegen`).
+
+use crate::coeffs::{
+    CoefficientSet, ControllerParams, EgkParams, FusionParams, MAX_VARS, N_ALPHA, N_PRESSURE_INPUTS, N_TAPS,
+    PRESSURE_RANK, PressureModel, RateFilter, SCHEMA_VERSION, coupling_var, plant_var,
+};
+use crate::sparse::{Monomial, SparseModel, Term};
+
+/// `b / (2 U)` of the paper's wing (b = 0.287 m) at 6.5 m/s, s.
+const HALF_SPAN_TIME_S: f32 = 0.287 / (2.0 * 6.5);
+
+/// The eGK prior at one angle of attack: GK time constants for a delta wing (tau1 = 3 c/U,
+/// tau2 = 0.5 c/U), slender-wing roll damping `C_l,p = -pi A / 32` and a sideslip derivative
+/// that grows with alpha.
+const fn egk_prior(alpha_deg: f32) -> EgkParams {
+    EgkParams {
+        tau1_s: 0.15,
+        tau2_s: 0.025,
+        breakdown_deg: 22.0,
+        steepness_per_deg: 0.25,
+        sideslip_gain: 1.0,
+        clbeta_per_rad: -0.0075 * alpha_deg,
+        clp: -0.17,
+        clpdot: -0.01,
+        vortex_gain: 0.03 * (alpha_deg / 20.0) * (alpha_deg / 20.0),
+        bias: 0.0,
+        half_span_time_s: HALF_SPAN_TIME_S,
+    }
+}
+
+/// A first-order plant `C[k+1] = a C[k] + g Cmu[k]` for one jet: a 76 ms lag (1.5 c/U) to a
+/// roll moment of `sign * 0.01` at full blowing (0.009).
+const fn plant_prior(sign: f32) -> SparseModel {
+    let pole = 0.987_0;
+    let mut model = SparseModel::ZERO;
+    model.terms[0] = Term { coeff: pole, monomial: single(plant_var::CL_AFC) };
+    model.terms[1] = Term { coeff: sign * (1.0 - pole) * 0.01 / 0.009, monomial: single(plant_var::CMU) };
+    model.n_terms = 2;
+    model
+}
+
+const fn single(var_idx: usize) -> Monomial {
+    let mut powers = [0u8; MAX_VARS];
+    powers[var_idx] = 1;
+    Monomial { powers, gate_mask: 0 }
+}
+
+/// The physical prior at the paper's 1 kHz. The pressure path has no modes yet (its estimate is
+/// the offset, and the fusion gain is zero, so `C_l,roll` is the eGK's), and the coupling
+/// operator is zero (the linear superposition).
+pub const PRIOR: CoefficientSet = CoefficientSet {
+    schema_version: SCHEMA_VERSION,
+    dt_s: 1.0e-3,
+    // Poles of 30 Hz and 20 Hz first-order differentiators at 1 kHz: exp(-2 pi f dt).
+    rate_filter: RateFilter { rate_pole: 0.828_2, accel_pole: 0.881_9 },
+    alpha_schedule_deg: [0.0, 10.0, 20.0, 20.0],
+    n_alpha: 3,
+    egk: [egk_prior(0.0), egk_prior(10.0), egk_prior(20.0), egk_prior(20.0)],
+    pressure: PressureModel {
+        rank: 0,
+        a: [[0.0; PRESSURE_RANK]; PRESSURE_RANK],
+        b: [[0.0; N_PRESSURE_INPUTS]; PRESSURE_RANK],
+        c: [[0.0; PRESSURE_RANK]; N_TAPS],
+        cp_mean: [0.0; N_TAPS],
+        gain: [[0.0; N_TAPS]; PRESSURE_RANK],
+        innovation_std: [1.0; N_TAPS],
+        gate_sigma: 6.0,
+        isolate_after: 20,
+        cl_weights: [0.0; N_TAPS],
+        cl_offset: 0.0,
+    },
+    fusion: FusionParams { rho: 0.999, gain: 0.0 },
+    plant: [plant_prior(1.0), plant_prior(-1.0)],
+    coupling: SparseModel::ZERO,
+    controller: ControllerParams {
+        causality_pole: 0.98,
+        feedback_kp: 0.5,
+        feedback_ki: 5.0,
+        cmu_max: 0.009,
+        inversion_iterations: 16,
+    },
+};
+
+const _: () = assert!(N_ALPHA >= 3, "the prior schedules three angles of attack");
+
+/// A set with every table at its full size (rank-10 pressure model, 16-term plants and coupling
+/// operator) and stable, deterministic values: the fixture for tests and for the benchmark of
+/// one full step, whose cost depends on the sizes, not on the values.
+#[must_use]
+pub fn full_size_fixture() -> CoefficientSet {
+    let mut set = PRIOR;
+    let pressure = &mut set.pressure;
+    pressure.rank = PRESSURE_RANK as u8;
+    for row in 0..PRESSURE_RANK {
+        for col in 0..PRESSURE_RANK {
+            let coupling = 0.01 * fixture_value(row * 31 + col);
+            pressure.a[row][col] = if row == col { 0.95 - 0.02 * row as f32 } else { coupling };
+        }
+        for input in 0..N_PRESSURE_INPUTS {
+            pressure.b[row][input] = 0.01 * fixture_value(700 + row * 7 + input);
+        }
+        for tap in 0..N_TAPS {
+            pressure.c[tap][row] = 0.3 * fixture_value(1000 + tap * 17 + row);
+            pressure.gain[row][tap] = 0.05 * fixture_value(2000 + row * 13 + tap);
+        }
+    }
+    for tap in 0..N_TAPS {
+        pressure.cp_mean[tap] = -0.3 + 0.02 * tap as f32;
+        pressure.innovation_std[tap] = 0.02;
+        pressure.cl_weights[tap] = 0.01 * fixture_value(3000 + tap);
+    }
+    set.fusion = FusionParams { rho: 0.999, gain: 0.05 };
+    for side in 0..2 {
+        fill_sparse(&mut set.plant[side], 4000 + 100 * side, 4, 0.001, 0);
+        // Keep the plant a stable lag: the self term dominates.
+        set.plant[side].terms[0] = Term { coeff: 0.987, monomial: single(plant_var::CL_AFC) };
+    }
+    // Every coupling term is gated on blowing and roll, as the paper's admissibility rules ask.
+    let gates = (1 << coupling_var::CMU) | (1 << coupling_var::PHI);
+    fill_sparse(&mut set.coupling, 5000, MAX_VARS, 0.01, gates);
+    set
+}
+
+/// Fills every term slot with a distinct monomial of degree up to 3 over `n_vars` variables,
+/// small coefficients, and the given gates on every term.
+fn fill_sparse(model: &mut SparseModel, seed: usize, n_vars: usize, scale: f32, gate_mask: u8) {
+    for (term_idx, term) in model.terms.iter_mut().enumerate() {
+        let mut powers = [0u8; MAX_VARS];
+        powers[term_idx % n_vars] += 1;
+        powers[(term_idx / n_vars + 1) % n_vars] += (term_idx % 3) as u8;
+        *term = Term { coeff: scale * fixture_value(seed + term_idx), monomial: Monomial { powers, gate_mask } };
+    }
+    model.n_terms = model.terms.len() as u8;
+    model.gate_threshold = [1e-4; MAX_VARS];
+}
+
+/// A deterministic value in [-1, 1) (a 32-bit integer hash).
+fn fixture_value(index: usize) -> f32 {
+    let mut hash = (index as u32).wrapping_mul(0x9E37_79B9) ^ 0x85EB_CA6B;
+    hash ^= hash >> 15;
+    hash = hash.wrapping_mul(0x2C1B_3C6D);
+    hash ^= hash >> 12;
+    (hash as f32 / u32::MAX as f32) * 2.0 - 1.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::blob::validate;
+
+    #[test]
+    fn prior_and_fixture_are_valid_sets() {
+        assert_eq!(validate(&PRIOR), Ok(()));
+        assert_eq!(validate(&full_size_fixture()), Ok(()));
+    }
+}
