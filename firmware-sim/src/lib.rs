@@ -9,6 +9,8 @@
 #![deny(missing_docs)]
 
 #[cfg(feature = "std")]
+pub mod atomic;
+#[cfg(feature = "std")]
 pub mod campaign;
 #[cfg(feature = "std")]
 pub mod dataset;

@@ -4,3 +4,9 @@
 //! call the same code the command line runs.
 
 pub mod analysis;
+pub mod codegen;
+pub mod fit;
+pub mod model;
+pub mod plot;
+pub mod replay;
+pub mod sindy;

@@ -27,6 +27,42 @@ enum Command {
     Simulate(SimulateArgs),
     /// Print the paper's Table 1 (validity of superposition) for a dataset.
     Superposition(SuperpositionArgs),
+    /// Fit every coefficient of the estimator on a dataset's training part; write a model folder.
+    Fit(FitArgs),
+    /// Write a model's coefficient set as const tables into estimator-core (or check them).
+    Codegen(CodegenArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct FitArgs {
+    /// Dataset folder (or its manifest.toml).
+    #[arg(long)]
+    data: PathBuf,
+    /// Model folder to write (model.bin, model.md, model.json, plots); replaced atomically.
+    #[arg(long)]
+    out: PathBuf,
+    /// Seed, recorded in the model card (the fit itself is deterministic).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Share of every run, at its end, held out from fitting.
+    #[arg(long = "holdout-fraction", default_value_t = host_tools::fit::split::DEFAULT_HOLDOUT_FRACTION)]
+    holdout_fraction: f64,
+}
+
+#[derive(Debug, clap::Args)]
+struct CodegenArgs {
+    /// Model folder (or its model.bin).
+    #[arg(long)]
+    model: PathBuf,
+    /// Only compare with the committed file; fail if it is stale.
+    #[arg(long)]
+    check: bool,
+    /// The generated file (default: estimator-core/src/coeffs/generated.rs of this workspace).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Where the tables come from, written into the generated file's header.
+    #[arg(long)]
+    provenance: Option<String>,
 }
 
 #[derive(Debug, clap::Args)]
@@ -64,6 +100,8 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Simulate(args) => simulate(args),
         Command::Superposition(args) => superposition(args),
+        Command::Fit(args) => fit(args),
+        Command::Codegen(args) => codegen(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -129,6 +167,72 @@ fn superposition(args: SuperpositionArgs) -> anyhow::Result<()> {
             row.delta_std,
             row.rollact_mean
         );
+    }
+    Ok(())
+}
+
+/// `fit`: dataset -> model folder.
+fn fit(args: FitArgs) -> anyhow::Result<()> {
+    if !(0.0..1.0).contains(&args.holdout_fraction) {
+        anyhow::bail!("--holdout-fraction must be in [0, 1), found {}", args.holdout_fraction);
+    }
+    let started = Instant::now();
+    let dataset = firmware_sim::dataset::load_dataset(&args.data)?;
+    let config = host_tools::fit::pipeline::FitConfig {
+        split: host_tools::fit::split::Split { holdout_fraction: args.holdout_fraction },
+        ..Default::default()
+    };
+    let spinner = ProgressBar::new_spinner();
+    spinner.enable_steady_tick(std::time::Duration::from_millis(120));
+    let outcome = host_tools::fit::pipeline::fit_dataset(&dataset, &config, &|stage| {
+        spinner.set_message(format!("fitting: {stage}"))
+    })
+    .with_context(|| format!("fitting {}", args.data.display()))?;
+    spinner.set_message("writing the model folder");
+    let described = format!("{} (seed {})", args.data.display(), args.seed);
+    host_tools::fit::card::write_model_folder(&args.out, &outcome, &described)?;
+    spinner.finish_and_clear();
+    print_heldout(&outcome.report);
+    eprintln!("wrote {} in {:.1} s", args.out.display(), started.elapsed().as_secs_f64());
+    Ok(())
+}
+
+/// The held-out table of a fit on stdout.
+fn print_heldout(report: &host_tools::fit::pipeline::FitReport) {
+    println!("held-out RMS of C_l (replay through the fitted core; {})", report.split);
+    println!(
+        "{:>9} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10} {:>13} {:>10}",
+        "alpha_deg", "eGK", "pressure", "fused", "plant", "linear", "coupled", "E_SINDy/E_lin", "noise"
+    );
+    let cell = |value: Option<f64>| value.map_or("-".to_owned(), |v| format!("{v:.3e}"));
+    for row in &report.heldout.per_alpha {
+        println!(
+            "{:>9.1} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10} {:>13} {:>10}",
+            row.alpha_deg,
+            cell(row.egk_rms),
+            cell(row.pressure_rms),
+            cell(row.fused_rms),
+            cell(row.plant_rms),
+            cell(row.linear_rms),
+            cell(row.coupled_rms),
+            row.coupling_ratio.map_or("-".to_owned(), |r| format!("{r:.3}")),
+            cell(row.noise_rms)
+        );
+    }
+}
+
+/// `codegen`: model -> const tables in estimator-core (or a check of them).
+fn codegen(args: CodegenArgs) -> anyhow::Result<()> {
+    let (set, source) = host_tools::model::load(Some(&args.model))?;
+    let provenance = args.provenance.unwrap_or_else(|| format!("the fit in {source}"));
+    let text = host_tools::codegen::render(&set, &provenance)?;
+    let target = args.out.unwrap_or_else(host_tools::codegen::default_target);
+    if args.check {
+        host_tools::codegen::check(&target, &text, &args.model.display().to_string())?;
+        eprintln!("{} is up to date with {}", target.display(), args.model.display());
+    } else {
+        host_tools::codegen::write(&target, &text)?;
+        eprintln!("wrote {}", target.display());
     }
     Ok(())
 }

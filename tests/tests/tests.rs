@@ -7,3 +7,9 @@ mod dataset;
 
 // The synthetic wind tunnel: determinism, Table 1 on the default campaign, effects.
 mod tunnel;
+
+// The SINDy engine against PySINDy fixtures, and the threshold sweep's model selection.
+mod sindy;
+
+// Fitting and code generation: committed default tables, reproducibility, missing runs.
+mod fit;

@@ -255,6 +255,18 @@ impl DatasetError {
     }
 }
 
+impl From<crate::atomic::FolderError> for DatasetError {
+    fn from(error: crate::atomic::FolderError) -> Self {
+        match error {
+            crate::atomic::FolderError::Refused { path, found } => Self::NotADatasetFolder {
+                path,
+                found: if found == "a file" { "a file" } else { "a folder without manifest.toml" },
+            },
+            crate::atomic::FolderError::Io { path, action, source } => Self::Io { path, action, source },
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

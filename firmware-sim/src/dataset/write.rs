@@ -2,18 +2,14 @@
 //! renamed into place.
 
 use std::fs::{self, File};
-use std::io::{BufWriter, ErrorKind, Write};
+use std::io::{BufWriter, Write};
 use std::path::{Component, Path};
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use rayon::prelude::*;
 
 use super::manifest::{manifest_text, validate};
 use super::read::{COLUMNS, Clock, MANIFEST};
 use super::{Channels, Dataset, DatasetError, Run};
-
-/// Distinguishes the temporary folders of concurrent writes within one process.
-static WRITE_COUNTER: AtomicU64 = AtomicU64::new(0);
 
 /// Writes `dataset` into the folder `dir`: `manifest.toml` and one CSV file per run at the run's
 /// `file` (relative to `dir`; parent folders such as `runs/` are created).
@@ -43,19 +39,7 @@ pub fn write_dataset(dir: &Path, dataset: &Dataset) -> Result<(), DatasetError> 
         check_run(&dir.join(run_file), run)?;
     }
     let text = manifest_text(&manifest_file, dataset, &run_files)?;
-    check_destination(dir)?;
-    let (parent, name) = split(dir)?;
-    if !parent.as_os_str().is_empty() {
-        fs::create_dir_all(parent).map_err(DatasetError::io(parent, "cannot create the folder"))?;
-    }
-    let id = format!("{}-{}", std::process::id(), WRITE_COUNTER.fetch_add(1, Ordering::Relaxed));
-    let tmp = parent.join(format!(".{name}.tmp-{id}"));
-    if let Err(err) = fill(&tmp, dir, dataset, &run_files, &text) {
-        // Best effort: the error that matters is the one that made the write fail.
-        let _ = fs::remove_dir_all(&tmp);
-        return Err(err);
-    }
-    move_into_place(&tmp, dir, &parent.join(format!(".{name}.old-{id}")))
+    crate::atomic::write_folder(dir, MANIFEST, |tmp| fill(tmp, dir, dataset, &run_files, &text))
 }
 
 /// The runs' files as written in the manifest: relative, `/`-separated, distinct, not the
@@ -134,36 +118,9 @@ fn check_run(file: &Path, run: &Run) -> Result<(), DatasetError> {
     (2..).zip(&channels.t_s).try_for_each(|(row, &t_s)| clock.check(file, row, t_s))
 }
 
-/// Refuses to replace anything but a dataset folder or an empty folder.
-fn check_destination(dir: &Path) -> Result<(), DatasetError> {
-    let refuse = |found| Err(DatasetError::NotADatasetFolder { path: dir.to_path_buf(), found });
-    match fs::metadata(dir) {
-        // Absent, or under a file: creating the parent folders reports the latter.
-        Err(err) if matches!(err.kind(), ErrorKind::NotFound | ErrorKind::NotADirectory) => Ok(()),
-        Err(err) => Err(DatasetError::io(dir, "cannot inspect the destination")(err)),
-        Ok(meta) if !meta.is_dir() => refuse("a file"),
-        Ok(_) if dir.join(MANIFEST).is_file() => Ok(()),
-        Ok(_) => {
-            let mut entries = fs::read_dir(dir).map_err(DatasetError::io(dir, "cannot list the folder"))?;
-            if entries.next().is_none() { Ok(()) } else { refuse("a folder without manifest.toml") }
-        }
-    }
-}
-
-/// The parent folder and the name of `dir`.
-fn split(dir: &Path) -> Result<(&Path, String), DatasetError> {
-    let name = dir.file_name().and_then(|name| name.to_str()).ok_or_else(|| DatasetError::Io {
-        path: dir.to_path_buf(),
-        action: "cannot write a dataset here",
-        source: std::io::Error::new(ErrorKind::InvalidInput, "expected a path ending in a folder name in UTF-8"),
-    })?;
-    Ok((dir.parent().unwrap_or_else(|| Path::new("")), name.to_owned()))
-}
-
 /// Writes the manifest and all run files into the new folder `tmp`. `dir` is the destination,
 /// named in errors about the data.
 fn fill(tmp: &Path, dir: &Path, dataset: &Dataset, run_files: &[String], text: &str) -> Result<(), DatasetError> {
-    fs::create_dir(tmp).map_err(DatasetError::io(tmp, "cannot create the temporary folder"))?;
     let manifest = tmp.join(MANIFEST);
     fs::write(&manifest, text).map_err(DatasetError::io(&manifest, "cannot write"))?;
     let written: Vec<Result<(), DatasetError>> = dataset
@@ -209,30 +166,6 @@ fn write_run(path: &Path, shown: &Path, channels: &Channels) -> Result<(), Datas
     out.flush().map_err(DatasetError::io(path, "cannot write"))
 }
 
-/// Renames the complete folder `tmp` to `dir`, moving an existing `dir` to `backup` first and
-/// removing it afterwards.
-fn move_into_place(tmp: &Path, dir: &Path, backup: &Path) -> Result<(), DatasetError> {
-    let existed = dir.exists();
-    if existed && let Err(err) = fs::rename(dir, backup) {
-        let _ = fs::remove_dir_all(tmp);
-        return Err(DatasetError::io(dir, "cannot move the previous dataset aside")(err));
-    }
-    if let Err(err) = fs::rename(tmp, dir) {
-        // Best effort: put the previous dataset back and drop the new one.
-        if existed {
-            let _ = fs::rename(backup, dir);
-        }
-        let _ = fs::remove_dir_all(tmp);
-        return Err(DatasetError::io(tmp, "cannot rename the new dataset into place")(err));
-    }
-    if existed {
-        // The new dataset is complete and in place; a backup that cannot be removed only costs
-        // disk space, so it does not fail the write.
-        let _ = fs::remove_dir_all(backup);
-    }
-    Ok(())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -255,14 +188,5 @@ mod tests {
         let expected = "t_s,phi_deg,cmu_port,cmu_stbd,cp01,cp02,cp03,cp04,cp05,cp06,cp07,cp08,\
                         cp09,cp10,cp11,cp12,cl,alpha_deg,phi_cmd_deg";
         assert_eq!(names.join(","), expected);
-    }
-
-    #[test]
-    fn split_refuses_paths_without_a_name() {
-        let msg = split(Path::new("/")).unwrap_err().to_string();
-        assert!(msg.starts_with("/: cannot write a dataset here"), "{msg}");
-        let dir = std::env::temp_dir().join("x");
-        let (parent, name) = split(&dir).unwrap();
-        assert_eq!((parent, name.as_str()), (std::env::temp_dir().as_path(), "x"));
     }
 }

@@ -6,9 +6,13 @@
 //! pressure-model modes are zero rows and columns, unused sparse terms are zero terms past
 //! `n_terms`).
 
+mod generated;
+
 use serde::{Deserialize, Serialize};
 
 use crate::sparse::SparseModel;
+
+pub use generated::DEFAULT;
 
 /// Version of the coefficient-set layout. Bump it whenever a field or a size changes.
 pub const SCHEMA_VERSION: u16 = 1;

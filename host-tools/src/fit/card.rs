@@ -1,0 +1,209 @@
+//! The model folder `fit` writes: `model.bin` (the coefficient blob), `model.json` (the fit
+//! report and the tables), `model.md` (the model card: equations with their coefficients like
+//! the paper's eqs. 6, 7 and 12, fit metrics, the lambda sweeps as SVG plots).
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use estimator_core::CoefficientSet;
+use serde::Serialize;
+
+use super::pipeline::{FitOutcome, FitReport};
+use super::sparse_fit::SparseFit;
+use crate::model::{BLOB_FILE, ModelError};
+use crate::plot::{Axes, Series, svg};
+
+/// What `model.json` holds.
+#[derive(Debug, Serialize)]
+struct ModelJson<'a> {
+    /// Where the data came from.
+    dataset: &'a str,
+    /// The fit's numbers.
+    report: &'a FitReport,
+    /// The tables, as the core holds them.
+    coefficients: String,
+}
+
+/// Writes the model folder `dir` completely or not at all.
+pub fn write_model_folder(dir: &Path, outcome: &FitOutcome, dataset: &str) -> Result<(), ModelError> {
+    let blob =
+        crate::model::encode(&outcome.set).map_err(|error| ModelError::Blob { path: dir.join(BLOB_FILE), error })?;
+    let json = ModelJson { dataset, report: &outcome.report, coefficients: format!("{:?}", outcome.set) };
+    let json = serde_json::to_string_pretty(&json).unwrap_or_else(|error| format!("{{\"error\": \"{error}\"}}"));
+    let card = model_card(&outcome.set, &outcome.report, dataset);
+    let plots = sweep_plots(&outcome.report);
+    firmware_sim::atomic::write_folder(dir, BLOB_FILE, |tmp| {
+        let write = |name: &str, bytes: &[u8]| {
+            std::fs::write(tmp.join(name), bytes).map_err(|source| ModelError::Io { path: dir.join(name), source })
+        };
+        write(BLOB_FILE, &blob)?;
+        write("model.json", json.as_bytes())?;
+        write("model.md", card.as_bytes())?;
+        for (name, plot) in &plots {
+            write(name, plot.as_bytes())?;
+        }
+        Ok(())
+    })
+}
+
+/// The sweep plots: held-out error against the number of terms, selected model marked.
+fn sweep_plots(report: &FitReport) -> Vec<(String, String)> {
+    let mut plots = Vec::new();
+    for (side, name) in [(0usize, "port"), (1, "starboard")] {
+        if let Some(fit) = &report.plant[side] {
+            let error = |row: &super::sparse_fit::SweepRow| row.heldout_free_run_rms.unwrap_or(f64::NAN);
+            plots.push((
+                format!("plant_{name}_sweep.svg"),
+                sweep_svg(&format!("plant ({name} jet): lambda sweep"), fit, "held-out free-run RMS of C_l", &error),
+            ));
+        }
+    }
+    if let Some(fit) = &report.coupling {
+        let error = |row: &super::sparse_fit::SweepRow| row.heldout_one_step_rms;
+        plots.push((
+            "coupling_sweep.svg".into(),
+            sweep_svg("coupling operator: lambda sweep", fit, "held-out RMS of the correction error", &error),
+        ));
+    }
+    plots
+}
+
+fn sweep_svg(
+    title: &str,
+    fit: &SparseFit,
+    y_label: &str,
+    error: &dyn Fn(&super::sparse_fit::SweepRow) -> f64,
+) -> String {
+    let point = |row: &super::sparse_fit::SweepRow| (row.n_terms as f64, error(row));
+    let all: Vec<(f64, f64)> = fit.sweep.iter().map(point).collect();
+    let pareto: Vec<(f64, f64)> = fit.sweep.iter().filter(|row| row.pareto).map(point).collect();
+    let selected: Vec<(f64, f64)> = fit.selected_row().map(point).into_iter().collect();
+    let axes = Axes { title: title.into(), x_label: "number of terms".into(), y_label: y_label.into(), log_y: true };
+    svg(
+        &axes,
+        &[
+            Series { name: "sweep models".into(), points: all, line: false },
+            Series { name: "Pareto front (held-out one-step)".into(), points: pareto, line: false },
+            Series { name: "selected".into(), points: selected, line: false },
+        ],
+    )
+}
+
+/// The model card in Markdown.
+#[must_use]
+pub fn model_card(set: &CoefficientSet, report: &FitReport, dataset: &str) -> String {
+    let mut md = String::new();
+    let _ = writeln!(md, "# Model card\n\nFitted on `{dataset}` ({}); step {} s.\n", report.split, report.dt_s);
+    egk_section(&mut md, report);
+    pressure_section(&mut md, report);
+    let fusion = &report.fusion;
+    let _ = writeln!(
+        md,
+        "## Fusion\n\n`C_l,roll = C_l,eGK + e`, `e[k] = rho e[k-1] + w` observed as `C_l,p - C_l,eGK`: correlation time {:.3} s (rho = {:.6}), gain {:.3e}. Training RMS: eGK {:.3e}, pressure path {:.3e}, fused {:.3e}.\n",
+        fusion.correlation_time_s, fusion.rho, fusion.gain, fusion.rms_egk, fusion.rms_pressure, fusion.rms_fused
+    );
+    for (side, name) in [(0usize, "port"), (1, "starboard")] {
+        let _ = writeln!(md, "## Plant, {name} jet (paper eq. 5)\n");
+        match &report.plant[side] {
+            Some(fit) => sparse_section(&mut md, "C_l,AFC[k+1]", fit, &format!("plant_{name}_sweep.svg")),
+            None => {
+                let _ = writeln!(md, "Mirrored from the other jet ({} terms).\n", set.plant[side].n_terms);
+            }
+        }
+    }
+    let _ = writeln!(md, "## Coupling operator (paper eqs. 9-12)\n");
+    match &report.coupling {
+        Some(fit) => sparse_section(&mut md, "C_l - C_l,roll - C_l,AFC", fit, "coupling_sweep.svg"),
+        None => {
+            let _ = writeln!(md, "Zero (no roll+actuation runs).\n");
+        }
+    }
+    let _ = writeln!(
+        md,
+        "Indicator thresholds: `[cmu]` = |Cmu| > {:.3e}, `[phi]` = |phi| > {:.3e} rad.\n",
+        report.coupling_gates[0], report.coupling_gates[1]
+    );
+    heldout_section(&mut md, report);
+    for note in &report.notes {
+        let _ = writeln!(md, "- Note: {note}");
+    }
+    let timing: Vec<String> = report.timing_s.iter().map(|(stage, s)| format!("{stage} {s:.2} s")).collect();
+    let _ = writeln!(md, "\nTime: {}.", timing.join(", "));
+    md
+}
+
+fn egk_section(md: &mut String, report: &FitReport) {
+    let _ = writeln!(
+        md,
+        "## Disturbance model: extended Goman-Khrabrov\n\n`tau1 x' + x = x0(a - tau2 a')`, `x0(a) = (1 - tanh(k (a - a*))) / 2` per half-wing at `a = atan(tan alpha cos phi) -+ kb asin(sin alpha sin phi)`; `C_l = C_l,beta beta + C_l,p p_hat + C_l,pdot p_hat_dot + K_v (x_L - x_R) + C_l,0`.\n\n| alpha (deg) | tau1 (s) | tau2 (s) | a* (deg) | k (1/deg) | kb | C_l,beta | C_l,p | C_l,pdot | K_v | C_l,0 | train RMS prior | train RMS fit |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
+    );
+    for egk in &report.egk {
+        let p = &egk.params;
+        let _ = writeln!(
+            md,
+            "| {} | {:.4} | {:.4} | {:.2} | {:.3} | {:.3} | {:.4} | {:.4} | {:.4} | {:.4} | {:.2e} | {:.3e} | {:.3e} |",
+            egk.alpha_deg, p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], egk.rms_prior, egk.rms_fit
+        );
+    }
+    let _ = writeln!(md);
+}
+
+fn pressure_section(md: &mut String, report: &FitReport) {
+    let p = &report.pressure;
+    let _ = writeln!(
+        md,
+        "## Disturbance model: time-shifted pressure model and Kalman filter\n\nRank {} of {} ({:.4} of the energy), spectral radius {:.5}{}; steady-state gain from the DARE ({} iterations, residual {:.1e}). Training RMS: Cp one-step prediction {:.3e}, filtered Cp {:.3e}; map to C_l {:.3e} (C_l standard deviation {:.3e}).\n",
+        p.rank,
+        p.data_rank,
+        p.energy_kept,
+        p.spectral_radius,
+        if p.stabilised { " (stabilised)" } else { "" },
+        p.dare_iterations,
+        p.dare_residual,
+        p.cp_prediction_rms,
+        p.cp_filtered_rms,
+        p.cl_rms,
+        p.cl_std
+    );
+}
+
+fn sparse_section(md: &mut String, lhs: &str, fit: &SparseFit, plot: &str) {
+    let rhs: Vec<String> = fit.terms.iter().map(|(name, c)| format!("{c:+.6e} {name}")).collect();
+    let _ = writeln!(md, "`{lhs} = {}`\n", if rhs.is_empty() { "0".to_owned() } else { rhs.join(" ") });
+    if let Some(row) = fit.selected_row() {
+        let free_run = row.heldout_free_run_rms.map_or(String::new(), |fr| format!(", free run {fr:.3e}"));
+        let _ = writeln!(
+            md,
+            "{} terms selected from {} distinct sweep models by BIC with {} effective held-out samples; held-out RMS: one step {:.3e}{free_run}; {} training samples.\n\n![sweep]({plot})\n",
+            row.n_terms,
+            fit.sweep.len(),
+            row.heldout_effective_samples,
+            row.heldout_one_step_rms,
+            fit.n_train
+        );
+    }
+}
+
+fn heldout_section(md: &mut String, report: &FitReport) {
+    let _ = writeln!(
+        md,
+        "## Held-out errors (replay through the fitted core)\n\n| alpha (deg) | eGK | pressure path | fused | plant | linear | coupled | E_SINDy/E_lin | balance noise |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- |"
+    );
+    let cell = |value: Option<f64>| value.map_or("-".to_owned(), |v| format!("{v:.3e}"));
+    for row in &report.heldout.per_alpha {
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            row.alpha_deg,
+            cell(row.egk_rms),
+            cell(row.pressure_rms),
+            cell(row.fused_rms),
+            cell(row.plant_rms),
+            cell(row.linear_rms),
+            cell(row.coupled_rms),
+            row.coupling_ratio.map_or("-".to_owned(), |r| format!("{r:.3}")),
+            cell(row.noise_rms)
+        );
+    }
+    let _ = writeln!(md);
+}

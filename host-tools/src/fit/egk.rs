@@ -1,0 +1,331 @@
+//! Fit of the extended Goman-Khrabrov model (estimator_core::egk) on roll runs, one parameter
+//! set per angle of attack of the schedule, by Levenberg-Marquardt on the simulation error
+//! (output error) of the roll moment.
+//!
+//! The f64 simulation here is the host reference of the core's eGK stage: the same equations
+//! in the same order (two flow states at the half-wings' incidences, exact zero-order-hold
+//! update with the input held over the step that ends at the sample, clamp to [0, 1], output
+//! map with damping and acceleration terms).
+//!
+//! Time constants and the breakdown steepness are fitted through their logarithms so that they
+//! stay positive; a weak Gaussian prior around the physical prior keeps parameters the data
+//! cannot see (at alpha = 0 the vortex states do not move) where they are, instead of letting
+//! them drift (a maximum a posteriori fit; Tarantola, Inverse Problem Theory, ch. 3).
+
+use std::ops::Range;
+
+use estimator_core::coeffs::EgkParams;
+use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
+use nalgebra::{DMatrix, DVector, Dyn, Owned};
+use rayon::prelude::*;
+
+use super::signals::RunSignals;
+
+/// Number of fitted parameters.
+const N_PARAMS: usize = 10;
+
+/// Widths of the prior in the fitted coordinates: ln tau1, ln tau2, a* (deg), ln k, kb,
+/// C_l,beta, C_l,p, C_l,pdot, K_v, C_l,0.
+const PRIOR_WIDTH: [f64; N_PARAMS] = [1.0, 1.5, 5.0, 1.0, 0.5, 0.2, 0.2, 0.05, 0.05, 0.01];
+
+/// How strongly the prior counts, in equivalent samples at the fit's residual level.
+const PRIOR_SAMPLES: f64 = 200.0;
+
+/// One roll run's training samples for the eGK fit.
+#[derive(Debug, Clone)]
+pub struct EgkData<'a> {
+    /// The run's signals.
+    pub signals: &'a RunSignals,
+    /// Samples to fit (the run is simulated from its start so the states are right there).
+    pub range: Range<usize>,
+}
+
+/// The result of the fit at one angle of attack.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EgkFit {
+    /// Angle of attack, deg.
+    pub alpha_deg: f64,
+    /// Fitted parameters.
+    pub params: EgkParams,
+    /// RMS of the simulation error on the training samples, before (prior) and after the fit.
+    pub rms_prior: f64,
+    /// RMS after the fit.
+    pub rms_fit: f64,
+    /// Number of residuals.
+    pub n_samples: usize,
+    /// Levenberg-Marquardt's termination, for the model card.
+    pub termination: String,
+    /// Function evaluations used.
+    pub evaluations: usize,
+}
+
+/// Simulates the eGK roll moment over `signals` (all samples) in f64.
+#[must_use]
+pub fn simulate(params: &EgkParams, alpha_deg: f64, dt_s: f64, signals: &RunSignals) -> Vec<f64> {
+    simulate_f64(
+        &Coordinates::from_params(params).params(params.half_span_time_s),
+        alpha_deg,
+        dt_s,
+        signals,
+        signals.len(),
+    )
+}
+
+/// Parameters in f64 (the core's `EgkParams` fields).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Params64 {
+    tau1_s: f64,
+    tau2_s: f64,
+    breakdown_deg: f64,
+    steepness_per_deg: f64,
+    sideslip_gain: f64,
+    clbeta_per_rad: f64,
+    clp: f64,
+    clpdot: f64,
+    vortex_gain: f64,
+    bias: f64,
+    half_span_time_s: f64,
+}
+
+/// The fitted coordinates (logs of the positive parameters).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Coordinates([f64; N_PARAMS]);
+
+impl Coordinates {
+    fn from_params(p: &EgkParams) -> Self {
+        let f = f64::from;
+        Self([
+            f(p.tau1_s).max(1e-4).ln(),
+            f(p.tau2_s).max(1e-5).ln(),
+            f(p.breakdown_deg),
+            f(p.steepness_per_deg).max(1e-4).ln(),
+            f(p.sideslip_gain),
+            f(p.clbeta_per_rad),
+            f(p.clp),
+            f(p.clpdot),
+            f(p.vortex_gain),
+            f(p.bias),
+        ])
+    }
+
+    fn params(&self, half_span_time_s: f32) -> Params64 {
+        let c = &self.0;
+        Params64 {
+            tau1_s: c[0].exp(),
+            tau2_s: c[1].exp(),
+            breakdown_deg: c[2],
+            steepness_per_deg: c[3].exp(),
+            sideslip_gain: c[4],
+            clbeta_per_rad: c[5],
+            clp: c[6],
+            clpdot: c[7],
+            vortex_gain: c[8],
+            bias: c[9],
+            half_span_time_s: f64::from(half_span_time_s),
+        }
+    }
+
+    fn to_core(self, half_span_time_s: f32) -> EgkParams {
+        let p = self.params(half_span_time_s);
+        EgkParams {
+            tau1_s: p.tau1_s as f32,
+            tau2_s: p.tau2_s as f32,
+            breakdown_deg: p.breakdown_deg as f32,
+            steepness_per_deg: p.steepness_per_deg as f32,
+            sideslip_gain: p.sideslip_gain as f32,
+            clbeta_per_rad: p.clbeta_per_rad as f32,
+            clp: p.clp as f32,
+            clpdot: p.clpdot as f32,
+            vortex_gain: p.vortex_gain as f32,
+            bias: p.bias as f32,
+            half_span_time_s,
+        }
+    }
+}
+
+/// The regressors of the eGK's output map at one sample: the map is linear in
+/// `(C_l,beta, C_l,p, C_l,pdot, K_v, C_l,0)` once the states are known.
+fn simulate_regressors(p: &Params64, alpha_deg: f64, dt_s: f64, signals: &RunSignals, end: usize) -> Vec<[f64; 5]> {
+    let alpha = alpha_deg.to_radians();
+    let (sin_a, tan_a) = (alpha.sin(), alpha.tan());
+    let decay = (-dt_s / p.tau1_s).exp();
+    let mut vortex = [0.0f64; 2];
+    let mut out = Vec::with_capacity(end);
+    for idx in 0..end.min(signals.len()) {
+        let (phi, phi_dot) = (signals.phi_rad[idx], signals.phi_dot_rad_s[idx]);
+        let sin_beta = (sin_a * phi.sin()).clamp(-1.0, 1.0);
+        let beta = sin_beta.asin();
+        let tan_cos = tan_a * phi.cos();
+        let alpha_b = tan_cos.atan();
+        let dbeta = sin_a * phi.cos() / (1.0 - sin_beta * sin_beta).sqrt().max(1e-6);
+        let dalpha_b = -tan_a * phi.sin() / (1.0 + tan_cos * tan_cos);
+        for (side, sign) in [(0usize, -1.0f64), (1, 1.0)] {
+            let incidence = (alpha_b + sign * p.sideslip_gain * beta).to_degrees();
+            let rate = ((dalpha_b + sign * p.sideslip_gain * dbeta) * phi_dot).to_degrees();
+            let target = 0.5 * (1.0 - (p.steepness_per_deg * (incidence - p.tau2_s * rate - p.breakdown_deg)).tanh());
+            let next = if idx == 0 { target } else { target + (vortex[side] - target) * decay };
+            vortex[side] = next.clamp(0.0, 1.0);
+        }
+        let p_hat = phi_dot * p.half_span_time_s;
+        let p_hat_dot = signals.phi_ddot_rad_s2[idx] * p.half_span_time_s * p.half_span_time_s;
+        out.push([beta, p_hat, p_hat_dot, vortex[0] - vortex[1], 1.0]);
+    }
+    out
+}
+
+fn simulate_f64(p: &Params64, alpha_deg: f64, dt_s: f64, signals: &RunSignals, end: usize) -> Vec<f64> {
+    let weights = [p.clbeta_per_rad, p.clp, p.clpdot, p.vortex_gain, p.bias];
+    simulate_regressors(p, alpha_deg, dt_s, signals, end)
+        .iter()
+        .map(|row| row.iter().zip(&weights).map(|(x, w)| x * w).sum())
+        .collect()
+}
+
+/// The Levenberg-Marquardt problem: simulation errors over every run, then the prior rows.
+struct EgkProblem<'a> {
+    data: &'a [EgkData<'a>],
+    alpha_deg: f64,
+    dt_s: f64,
+    half_span_time_s: f32,
+    coordinates: Coordinates,
+    prior: Coordinates,
+    prior_scale: f64,
+}
+
+impl EgkProblem<'_> {
+    fn residuals_at(&self, coordinates: &Coordinates) -> Vec<f64> {
+        let params = coordinates.params(self.half_span_time_s);
+        let mut residuals = Vec::new();
+        for data in self.data {
+            let simulated = simulate_f64(&params, self.alpha_deg, self.dt_s, data.signals, data.range.end);
+            for idx in data.range.clone() {
+                let measured = data.signals.cl[idx];
+                if measured.is_finite() {
+                    residuals.push(simulated[idx] - measured);
+                }
+            }
+        }
+        for ((value, prior), width) in coordinates.0.iter().zip(&self.prior.0).zip(PRIOR_WIDTH) {
+            residuals.push(self.prior_scale * (value - prior) / width);
+        }
+        residuals
+    }
+}
+
+impl LeastSquaresProblem<f64, Dyn, Dyn> for EgkProblem<'_> {
+    type ResidualStorage = Owned<f64, Dyn>;
+    type JacobianStorage = Owned<f64, Dyn, Dyn>;
+    type ParameterStorage = Owned<f64, Dyn>;
+
+    fn set_params(&mut self, x: &DVector<f64>) {
+        for (dst, src) in self.coordinates.0.iter_mut().zip(x.iter()) {
+            *dst = *src;
+        }
+    }
+
+    fn params(&self) -> DVector<f64> {
+        DVector::from_column_slice(&self.coordinates.0)
+    }
+
+    fn residuals(&self) -> Option<DVector<f64>> {
+        let residuals = self.residuals_at(&self.coordinates);
+        residuals.iter().all(|r| r.is_finite()).then(|| DVector::from_vec(residuals))
+    }
+
+    /// Central differences, one parameter per thread.
+    fn jacobian(&self) -> Option<DMatrix<f64>> {
+        let columns: Vec<Vec<f64>> = (0..N_PARAMS)
+            .into_par_iter()
+            .map(|param| {
+                let step = 1e-6 * self.coordinates.0[param].abs().max(1e-2);
+                let (mut plus, mut minus) = (self.coordinates, self.coordinates);
+                plus.0[param] += step;
+                minus.0[param] -= step;
+                let (high, low) = (self.residuals_at(&plus), self.residuals_at(&minus));
+                high.iter().zip(&low).map(|(h, l)| (h - l) / (2.0 * step)).collect()
+            })
+            .collect();
+        let n_rows = columns.first().map_or(0, Vec::len);
+        let jacobian = DMatrix::from_fn(n_rows, N_PARAMS, |row, col| columns[col][row]);
+        jacobian.iter().all(|value| value.is_finite()).then_some(jacobian)
+    }
+}
+
+/// Fits the eGK at one angle of attack from `prior`, on the training samples of the roll runs
+/// at that alpha.
+#[must_use]
+pub fn fit_at(alpha_deg: f64, dt_s: f64, prior: &EgkParams, data: &[EgkData<'_>]) -> EgkFit {
+    let half_span_time_s = prior.half_span_time_s;
+    let mut start = Coordinates::from_params(prior);
+    linear_output_map(&mut start, alpha_deg, dt_s, half_span_time_s, data);
+    let rms_prior = rms_of(&start, alpha_deg, dt_s, half_span_time_s, data);
+    let n_samples: usize =
+        data.iter().map(|d| d.range.clone().filter(|&idx| d.signals.cl[idx].is_finite()).count()).sum();
+    let problem = EgkProblem {
+        data,
+        alpha_deg,
+        dt_s,
+        half_span_time_s,
+        coordinates: start,
+        prior: start,
+        prior_scale: rms_prior * (PRIOR_SAMPLES).sqrt(),
+    };
+    let (solved, report) = LevenbergMarquardt::new().with_patience(60).minimize(problem);
+    let fitted = solved.coordinates;
+    let rms_fit = rms_of(&fitted, alpha_deg, dt_s, half_span_time_s, data);
+    // Never return something worse than the start (a failed minimisation keeps the prior).
+    let (coordinates, rms) =
+        if rms_fit.is_finite() && rms_fit <= rms_prior { (fitted, rms_fit) } else { (start, rms_prior) };
+    EgkFit {
+        alpha_deg,
+        params: coordinates.to_core(half_span_time_s),
+        rms_prior,
+        rms_fit: rms,
+        n_samples,
+        termination: format!("{:?}", report.termination),
+        evaluations: report.number_of_evaluations,
+    }
+}
+
+/// With the prior's dynamics, the output map is linear: start from its least-squares weights.
+fn linear_output_map(start: &mut Coordinates, alpha_deg: f64, dt_s: f64, half_span_time_s: f32, data: &[EgkData<'_>]) {
+    let params = start.params(half_span_time_s);
+    let mut rows = Vec::new();
+    let mut targets = Vec::new();
+    for d in data {
+        let regressors = simulate_regressors(&params, alpha_deg, dt_s, d.signals, d.range.end);
+        for idx in d.range.clone() {
+            if d.signals.cl[idx].is_finite() {
+                rows.push(regressors[idx]);
+                targets.push(d.signals.cl[idx]);
+            }
+        }
+    }
+    if rows.len() < 10 {
+        return;
+    }
+    let design = DMatrix::from_fn(rows.len(), 5, |row, col| rows[row][col]);
+    let target = DVector::from_vec(targets);
+    // Columns that do not vary (beta and the vortex asymmetry at alpha = 0) keep their prior.
+    let active: Vec<usize> = (0..5).filter(|&col| design.column(col).amax() > 1e-9).collect();
+    let reduced = design.select_columns(&active);
+    let Ok(solution) = reduced.clone().svd(true, true).solve(&target, 1e-12) else { return };
+    for (slot, &col) in active.iter().enumerate() {
+        start.0[5 + col] = solution[slot];
+    }
+}
+
+fn rms_of(coordinates: &Coordinates, alpha_deg: f64, dt_s: f64, half_span_time_s: f32, data: &[EgkData<'_>]) -> f64 {
+    let params = coordinates.params(half_span_time_s);
+    let (mut sum, mut count) = (0.0, 0usize);
+    for d in data {
+        let simulated = simulate_f64(&params, alpha_deg, dt_s, d.signals, d.range.end);
+        for idx in d.range.clone() {
+            if d.signals.cl[idx].is_finite() {
+                sum += (simulated[idx] - d.signals.cl[idx]).powi(2);
+                count += 1;
+            }
+        }
+    }
+    if count == 0 { f64::NAN } else { (sum / count as f64).sqrt() }
+}

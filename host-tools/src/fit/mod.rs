@@ -1,0 +1,17 @@
+//! Fitting every block of the estimator on a dataset's training part.
+
+pub mod card;
+pub mod coupling;
+pub mod dare;
+pub mod egk;
+mod error;
+pub mod fusion;
+pub mod heldout;
+pub mod pipeline;
+pub mod plant;
+pub mod pressure;
+pub mod signals;
+pub mod sparse_fit;
+pub mod split;
+
+pub use error::FitError;

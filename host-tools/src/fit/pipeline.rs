@@ -1,0 +1,445 @@
+//! The whole fit of a dataset, block by block, in the paper's order (sections III and V): the
+//! disturbance model (eGK, pressure path, fusion) on roll runs, the plant on actuation runs,
+//! then the coupling operator on roll+actuation runs with the fitted models' outputs; finally
+//! the held-out part of every run is replayed through the fitted core.
+
+use std::time::Instant;
+
+use estimator_core::coeffs::{CoefficientSet, N_ALPHA, RateFilter, coupling_var};
+use estimator_core::egk::params_at;
+use estimator_core::prior::PRIOR;
+use estimator_core::sparse::SparseModel;
+use firmware_sim::dataset::{Dataset, Run, RunKind};
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::FitError;
+use super::coupling::{CouplingConfig, CouplingRun, coupling_library, fit_coupling};
+use super::egk::{EgkData, EgkFit, fit_at, simulate};
+use super::fusion::{FusionData, FusionFit, fit_fusion};
+use super::heldout::{HeldoutReport, evaluate_heldout};
+use super::plant::{PlantConfig, PlantRun, fit_plant, mirrored};
+use super::pressure::{PressureFitConfig, PressureFitReport, PressureRun, fit_pressure_model, run_pressure_filter};
+use super::signals::RunSignals;
+use super::sparse_fit::SparseFit;
+use super::split::Split;
+use crate::replay::replay_run;
+
+/// Corner of the roll-rate differentiator, Hz (keeps the 3 Hz roll content, rejects encoder
+/// quantisation noise).
+pub const RATE_CORNER_HZ: f64 = 30.0;
+/// Corner of the roll-acceleration differentiator, Hz.
+pub const ACCEL_CORNER_HZ: f64 = 20.0;
+
+/// Settings of the whole fit.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct FitConfig {
+    /// The training/held-out split.
+    pub split: Split,
+    /// The plant fit.
+    pub plant: PlantConfig,
+    /// The coupling fit.
+    pub coupling: CouplingConfig,
+    /// The pressure-model fit.
+    pub pressure: PressureFitConfig,
+}
+
+/// Everything a fit produced: the tables and the report.
+#[derive(Debug, Clone)]
+pub struct FitOutcome {
+    /// The coefficient set.
+    pub set: CoefficientSet,
+    /// The report behind the model card and `model.json`.
+    pub report: FitReport,
+}
+
+/// The numbers of a fit.
+#[derive(Debug, Clone, Serialize)]
+pub struct FitReport {
+    /// The split.
+    pub split: String,
+    /// Fixed step, s.
+    pub dt_s: f64,
+    /// eGK fits per angle of attack.
+    pub egk: Vec<EgkReport>,
+    /// The pressure path.
+    pub pressure: PressureFitReport,
+    /// The fusion.
+    pub fusion: FusionFit,
+    /// The plant of the port and starboard jets; `None` when mirrored from the other.
+    pub plant: [Option<SparseFit>; 2],
+    /// The coupling operator; `None` without roll+actuation runs (the operator is zero).
+    pub coupling: Option<SparseFit>,
+    /// Indicator thresholds of the coupling operator (Cmu, roll angle in rad).
+    pub coupling_gates: [f64; 2],
+    /// Held-out errors of the fitted core, per block and angle of attack.
+    pub heldout: HeldoutReport,
+    /// Notes (blocks left at their prior, mirrored jets).
+    pub notes: Vec<String>,
+    /// Seconds spent per stage.
+    pub timing_s: Vec<(String, f64)>,
+}
+
+/// The eGK at one angle of attack, for the report.
+#[derive(Debug, Clone, Serialize)]
+pub struct EgkReport {
+    /// Angle of attack, deg.
+    pub alpha_deg: f64,
+    /// Training RMS of the prior (after its linear output map).
+    pub rms_prior: f64,
+    /// Training RMS of the fit.
+    pub rms_fit: f64,
+    /// Training samples.
+    pub n_samples: usize,
+    /// Optimiser termination.
+    pub termination: String,
+    /// Parameters: tau1, tau2, a*, k, kb, C_l,beta, C_l,p, C_l,pdot, K_v, C_l,0.
+    pub params: [f64; 10],
+}
+
+impl From<&EgkFit> for EgkReport {
+    fn from(fit: &EgkFit) -> Self {
+        let p = &fit.params;
+        Self {
+            alpha_deg: fit.alpha_deg,
+            rms_prior: fit.rms_prior,
+            rms_fit: fit.rms_fit,
+            n_samples: fit.n_samples,
+            termination: fit.termination.clone(),
+            params: [
+                p.tau1_s,
+                p.tau2_s,
+                p.breakdown_deg,
+                p.steepness_per_deg,
+                p.sideslip_gain,
+                p.clbeta_per_rad,
+                p.clp,
+                p.clpdot,
+                p.vortex_gain,
+                p.bias,
+            ]
+            .map(f64::from),
+        }
+    }
+}
+
+/// Progress of a fit: called with the name of each stage as it starts.
+pub type Progress<'a> = &'a (dyn Fn(&str) + Sync);
+
+/// Fits every block of `dataset` on its training part and evaluates the result on the held-out
+/// part.
+pub fn fit_dataset(dataset: &Dataset, config: &FitConfig, progress: Progress<'_>) -> Result<FitOutcome, FitError> {
+    let mut timing = Vec::new();
+    let mut notes = Vec::new();
+    let sample_hz = common_rate(dataset)?;
+    let dt_s = 1.0 / sample_hz;
+    let mut set = CoefficientSet { dt_s: dt_s as f32, rate_filter: rate_filter(dt_s), ..PRIOR };
+    let signals: Vec<RunSignals> =
+        dataset.runs.par_iter().map(|run| RunSignals::new(run, &set.rate_filter, dt_s)).collect();
+    let roll =
+        indices_of(dataset, RunKind::Roll, "the disturbance model (eGK and pressure map) is fitted on roll runs")?;
+
+    let clock = Instant::now();
+    progress("eGK (Levenberg-Marquardt per angle of attack)");
+    let egk = fit_egk(dataset, &signals, &roll, config, &mut set)?;
+    timing.push(("egk".to_owned(), clock.elapsed().as_secs_f64()));
+
+    let clock = Instant::now();
+    progress("pressure model (time-shifted DMDc, DARE, map to C_l)");
+    let pressure = fit_pressure(dataset, &signals, config)?;
+    set.pressure = pressure.model;
+    timing.push(("pressure".to_owned(), clock.elapsed().as_secs_f64()));
+
+    let clock = Instant::now();
+    progress("fusion");
+    let fusion = fit_fusion_on(dataset, &signals, &roll, &set, &pressure.model_f64, config)?;
+    set.fusion = fusion.params();
+    timing.push(("fusion".to_owned(), clock.elapsed().as_secs_f64()));
+
+    let clock = Instant::now();
+    progress("plant (SINDy, eq. 5)");
+    let plant = fit_plants(dataset, &signals, config, sample_hz, &mut set, &mut notes)?;
+    timing.push(("plant".to_owned(), clock.elapsed().as_secs_f64()));
+
+    let clock = Instant::now();
+    progress("coupling operator (SINDy, eqs. 9-11)");
+    let (coupling, coupling_gates) = fit_coupling_on(dataset, &signals, config, &mut set, &mut notes)?;
+    timing.push(("coupling".to_owned(), clock.elapsed().as_secs_f64()));
+
+    estimator_core::blob::validate(&set).map_err(FitError::Invalid)?;
+    let clock = Instant::now();
+    progress("held-out replay through the fitted core");
+    let heldout = evaluate_heldout(dataset, &set, &config.split);
+    timing.push(("heldout".to_owned(), clock.elapsed().as_secs_f64()));
+    let report = FitReport {
+        split: config.split.describe(),
+        dt_s,
+        egk: egk.iter().map(EgkReport::from).collect(),
+        pressure: pressure.report,
+        fusion,
+        plant,
+        coupling,
+        coupling_gates,
+        heldout,
+        notes,
+        timing_s: timing,
+    };
+    Ok(FitOutcome { set, report })
+}
+
+/// The core's differentiators at step `dt_s`: poles `exp(-2 pi f dt)`.
+#[must_use]
+pub fn rate_filter(dt_s: f64) -> RateFilter {
+    let pole = |corner_hz: f64| (-std::f64::consts::TAU * corner_hz * dt_s).exp() as f32;
+    RateFilter { rate_pole: pole(RATE_CORNER_HZ), accel_pole: pole(ACCEL_CORNER_HZ) }
+}
+
+fn common_rate(dataset: &Dataset) -> Result<f64, FitError> {
+    let first = dataset
+        .runs
+        .first()
+        .map(|run| run.meta.sample_hz)
+        .ok_or(FitError::MissingRuns { kind: RunKind::Roll, needed_for: "the dataset has no runs at all" })?;
+    match dataset.runs.iter().find(|run| (run.meta.sample_hz - first).abs() > 1e-9 * first) {
+        Some(run) => Err(FitError::MixedRates {
+            first_hz: first,
+            other_hz: run.meta.sample_hz,
+            file: run.meta.file.display().to_string(),
+        }),
+        None => Ok(first),
+    }
+}
+
+fn indices_of(dataset: &Dataset, kind: RunKind, needed_for: &'static str) -> Result<Vec<usize>, FitError> {
+    let indices: Vec<usize> = (0..dataset.runs.len()).filter(|&idx| dataset.runs[idx].meta.kind == kind).collect();
+    if indices.is_empty() { Err(FitError::MissingRuns { kind, needed_for }) } else { Ok(indices) }
+}
+
+/// eGK per distinct alpha of the roll runs, in parallel; fills the schedule of `set`.
+fn fit_egk(
+    dataset: &Dataset,
+    signals: &[RunSignals],
+    roll: &[usize],
+    config: &FitConfig,
+    set: &mut CoefficientSet,
+) -> Result<Vec<EgkFit>, FitError> {
+    let mut alphas: Vec<f64> = roll.iter().map(|&idx| dataset.runs[idx].meta.alpha_deg).collect();
+    alphas.sort_by(f64::total_cmp);
+    alphas.dedup_by(|a, b| (*a - *b).abs() < 1e-6);
+    if alphas.len() > N_ALPHA {
+        let list = alphas.iter().map(|a| format!("{a}")).collect::<Vec<_>>().join(", ");
+        return Err(FitError::TooManyAlphas { found: alphas.len(), alphas: list, max: N_ALPHA });
+    }
+    let half_span_time_s = (dataset.wing.span_m / (2.0 * dataset.tunnel.u_inf_mps)) as f32;
+    let dt_s = f64::from(set.dt_s);
+    let fits: Vec<EgkFit> = alphas
+        .par_iter()
+        .map(|&alpha_deg| {
+            let data: Vec<EgkData<'_>> = roll
+                .iter()
+                .filter(|&&idx| (dataset.runs[idx].meta.alpha_deg - alpha_deg).abs() < 1e-6)
+                .map(|&idx| EgkData { signals: &signals[idx], range: config.split.training(signals[idx].len()) })
+                .collect();
+            let mut prior = params_at(&PRIOR, alpha_deg as f32);
+            prior.half_span_time_s = half_span_time_s;
+            fit_at(alpha_deg, dt_s, &prior, &data)
+        })
+        .collect();
+    set.n_alpha = fits.len() as u8;
+    for (slot, fit) in fits.iter().enumerate() {
+        set.alpha_schedule_deg[slot] = fit.alpha_deg as f32;
+        set.egk[slot] = fit.params;
+    }
+    for slot in fits.len()..N_ALPHA {
+        set.alpha_schedule_deg[slot] = set.alpha_schedule_deg[fits.len() - 1] + (slot - fits.len() + 1) as f32;
+        set.egk[slot] = set.egk[fits.len() - 1];
+    }
+    Ok(fits)
+}
+
+fn pressure_runs<'a>(
+    dataset: &'a Dataset,
+    signals: &'a [RunSignals],
+    split: &Split,
+) -> Result<Vec<PressureRun<'a>>, FitError> {
+    dataset
+        .runs
+        .iter()
+        .zip(signals)
+        .map(|(run, signals)| {
+            let disturbance = run.meta.kind == RunKind::Roll;
+            Ok(PressureRun::from_signals(signals, &run.channels, split.training(signals.len()), disturbance)?)
+        })
+        .collect()
+}
+
+fn fit_pressure(
+    dataset: &Dataset,
+    signals: &[RunSignals],
+    config: &FitConfig,
+) -> Result<super::pressure::PressureFit, FitError> {
+    let runs = pressure_runs(dataset, signals, &config.split)?;
+    Ok(fit_pressure_model(&runs, &config.pressure)?)
+}
+
+/// Fusion on the training part of the roll runs, from the f64 eGK and pressure path.
+fn fit_fusion_on(
+    dataset: &Dataset,
+    signals: &[RunSignals],
+    roll: &[usize],
+    set: &CoefficientSet,
+    pressure: &super::pressure::PressureModelF64,
+    config: &FitConfig,
+) -> Result<FusionFit, FitError> {
+    let mut outputs = Vec::new();
+    for &idx in roll {
+        let run = &dataset.runs[idx];
+        let egk = simulate(
+            &params_at(set, run.meta.alpha_deg as f32),
+            run.meta.alpha_deg,
+            f64::from(set.dt_s),
+            &signals[idx],
+        );
+        let full = PressureRun::from_signals(&signals[idx], &run.channels, 0..signals[idx].len(), true)?;
+        let pressure = run_pressure_filter(pressure, &full)?;
+        outputs.push((idx, egk, pressure));
+    }
+    let data: Vec<FusionData<'_>> = outputs
+        .iter()
+        .map(|(idx, egk, pressure)| FusionData {
+            cl_egk: egk,
+            cl_pressure: pressure,
+            cl: &signals[*idx].cl,
+            range: config.split.training(signals[*idx].len()),
+        })
+        .collect();
+    Ok(fit_fusion(f64::from(set.dt_s), &data))
+}
+
+/// Whether a jet blows in a run (its Cmu leaves zero).
+fn blows(signals: &RunSignals, side: usize) -> bool {
+    signals.cmu[side].iter().any(|&cmu| cmu > 0.0)
+}
+
+/// Plants of both jets; a jet that never blows in the actuation runs is mirrored from the other.
+fn fit_plants(
+    dataset: &Dataset,
+    signals: &[RunSignals],
+    config: &FitConfig,
+    sample_hz: f64,
+    set: &mut CoefficientSet,
+    notes: &mut Vec<String>,
+) -> Result<[Option<SparseFit>; 2], FitError> {
+    let actuation = indices_of(dataset, RunKind::Actuation, "the plant model (eq. 5) is fitted on actuation runs")?;
+    let mut reports: [Option<SparseFit>; 2] = [None, None];
+    let mut models: [Option<SparseModel>; 2] = [None, None];
+    for side in 0..2 {
+        let runs: Vec<PlantRun<'_>> = actuation
+            .iter()
+            .filter(|&&idx| blows(&signals[idx], side))
+            .map(|&idx| PlantRun {
+                signals: &signals[idx],
+                train: config.split.training(signals[idx].len()),
+                heldout: config.split.heldout(signals[idx].len()),
+            })
+            .collect();
+        if runs.is_empty() {
+            continue;
+        }
+        let (model, report) = fit_plant(&runs, side, sample_hz, &config.plant)?;
+        models[side] = Some(model);
+        reports[side] = Some(report);
+    }
+    match models {
+        [Some(port), Some(starboard)] => set.plant = [port, starboard],
+        [Some(port), None] => {
+            set.plant = [port, mirrored(&port)];
+            notes.push(
+                "the starboard jet never blows in the actuation runs: its plant is the port plant mirrored".into(),
+            );
+        }
+        [None, Some(starboard)] => {
+            set.plant = [mirrored(&starboard), starboard];
+            notes.push(
+                "the port jet never blows in the actuation runs: its plant is the starboard plant mirrored".into(),
+            );
+        }
+        [None, None] => {
+            return Err(FitError::MissingRuns {
+                kind: RunKind::Actuation,
+                needed_for: "no jet blows in any actuation run",
+            });
+        }
+    }
+    Ok(reports)
+}
+
+/// The coupling operator on the roll+actuation runs, from the core's replay with a zero
+/// operator. Without such runs the operator stays zero (the linear superposition).
+fn fit_coupling_on(
+    dataset: &Dataset,
+    signals: &[RunSignals],
+    config: &FitConfig,
+    set: &mut CoefficientSet,
+    notes: &mut Vec<String>,
+) -> Result<(Option<SparseFit>, [f64; 2]), FitError> {
+    set.coupling = SparseModel::ZERO;
+    let both: Vec<usize> =
+        (0..dataset.runs.len()).filter(|&idx| dataset.runs[idx].meta.kind == RunKind::RollActuation).collect();
+    let gates = gate_thresholds(dataset, signals);
+    if both.is_empty() {
+        notes.push("no roll+actuation runs: the coupling operator is zero (linear superposition)".into());
+        return Ok((None, gates));
+    }
+    let runs: Vec<CouplingRun> =
+        both.par_iter().map(|&idx| coupling_run(&dataset.runs[idx], &signals[idx], set, &config.split)).collect();
+    let library = coupling_library(config.coupling.degree, gates[0] as f32, gates[1] as f32)?;
+    let (model, report) = fit_coupling(&library, &runs, &config.coupling)?;
+    set.coupling = model;
+    Ok((Some(report), gates))
+}
+
+/// The operator's variables and target at every sample of a run, from the core's replay.
+fn coupling_run(run: &Run, signals: &RunSignals, set: &CoefficientSet, split: &Split) -> CouplingRun {
+    let outputs = replay_run(set, run);
+    let mut last_cmu = 0.0;
+    let variables = outputs
+        .iter()
+        .enumerate()
+        .map(|(k, output)| {
+            let cmu = signals.cmu[0][k] + signals.cmu[1][k];
+            let mut vars = [0.0; 6];
+            vars[coupling_var::CL_ROLL] = f64::from(output.cl_roll);
+            vars[coupling_var::CL_AFC] = f64::from(output.cl_afc);
+            vars[coupling_var::ALPHA] = signals.alpha_deg[k].to_radians();
+            vars[coupling_var::CMU] = cmu;
+            vars[coupling_var::DCMU] = cmu - last_cmu;
+            vars[coupling_var::PHI] = signals.phi_rad[k];
+            last_cmu = cmu;
+            vars
+        })
+        .collect();
+    let target = outputs.iter().zip(&signals.cl).map(|(output, cl)| cl - f64::from(output.cl_linear)).collect();
+    CouplingRun { variables, target, train: split.training(signals.len()), heldout: split.heldout(signals.len()) }
+}
+
+/// Indicator thresholds from the data: twice the largest Cmu seen in the roll runs (where no
+/// jet blows) and twice the largest |roll angle| in the actuation runs (where the wing is held
+/// level), with floors of 1 % of the largest Cmu and 0.25 deg.
+fn gate_thresholds(dataset: &Dataset, signals: &[RunSignals]) -> [f64; 2] {
+    let largest = |kind: RunKind, value: &dyn Fn(&RunSignals) -> f64| -> f64 {
+        dataset
+            .runs
+            .iter()
+            .zip(signals)
+            .filter(|(run, _)| run.meta.kind == kind)
+            .map(|(_, s)| value(s))
+            .fold(0.0, f64::max)
+    };
+    let max_cmu = |s: &RunSignals| s.cmu[0].iter().chain(&s.cmu[1]).fold(0.0f64, |m, &v| m.max(v));
+    let max_phi = |s: &RunSignals| s.phi_rad.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let cmu_max_anywhere = dataset.runs.iter().zip(signals).map(|(_, s)| max_cmu(s)).fold(0.0, f64::max);
+    let cmu = (2.0 * largest(RunKind::Roll, &max_cmu)).max(0.01 * cmu_max_anywhere);
+    let phi = (2.0 * largest(RunKind::Actuation, &max_phi)).max(0.25f64.to_radians());
+    [cmu, phi]
+}

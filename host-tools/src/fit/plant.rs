@@ -1,0 +1,197 @@
+//! Fit of the plant model of one jet, the paper's eq. 5: `C_l,AFC[k+1] = Xi Theta(C_l,AFC[k],
+//! Cmu[k], dCmu[k], alpha[k])`, with the paper's library (all products up to degree 2 of the
+//! four variables, without `C_l,AFC^2`, section III.B), on the actuation runs.
+//!
+//! At 1 kHz, `C_l[k+1]` is nearly `C_l[k]`, so thresholds would act on the identity rather
+//! than on the dynamics; the regression therefore targets the increment
+//! `C_l[k+1] - C_l[k]` and the identity is added back to the `C_l,AFC` term afterwards
+//! (domain-models.md section 5.1, sampling-rate caveat). Regressor and target use the balance
+//! moment through a zero-phase low-pass, so that measurement noise in the regressor does not
+//! bias the lag towards zero. Every model of the threshold sweep is simulated open loop over
+//! the held-out samples, as the core runs it, and the selection uses that free-run error.
+
+use std::ops::Range;
+
+use estimator_core::coeffs::plant_var;
+use estimator_core::sparse::SparseModel;
+
+use super::FitError;
+use super::signals::{RunSignals, zero_phase_lowpass};
+use super::sparse_fit::{SelectBy, SparseFit, effective_samples, lag_one_autocorrelation, select_index, sparse_fit};
+use crate::sindy::{
+    HeldoutScore, Library, Normalisation, QrProblem, SelectionConfig, StlsConfig, log_thresholds, sweep,
+};
+
+/// Variable names of the plant library, in the core's order (`estimator_core::coeffs::plant_var`).
+pub const PLANT_VARIABLES: [&str; 4] = ["cl_afc", "cmu", "dcmu", "alpha"];
+
+/// Largest |C_l,AFC| a simulated candidate may reach before it counts as diverged.
+const DIVERGED: f64 = 1.0;
+
+/// Settings of the plant fit.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlantConfig {
+    /// Corner of the zero-phase low-pass on the balance moment, Hz.
+    pub corner_hz: f64,
+    /// Number of swept thresholds.
+    pub n_thresholds: usize,
+    /// Smallest threshold as a fraction of the largest normalised least-squares coefficient.
+    pub min_fraction: f64,
+}
+
+impl Default for PlantConfig {
+    fn default() -> Self {
+        Self { corner_hz: 40.0, n_thresholds: 40, min_fraction: 1e-5 }
+    }
+}
+
+/// One actuation run's samples for the plant fit.
+#[derive(Debug, Clone)]
+pub struct PlantRun<'a> {
+    /// The run's signals.
+    pub signals: &'a RunSignals,
+    /// Training samples.
+    pub train: Range<usize>,
+    /// Held-out samples (scored only).
+    pub heldout: Range<usize>,
+}
+
+/// The paper's plant library: products up to degree 2 of `(C_l,AFC, Cmu, dCmu, alpha)`
+/// including the constant, without `C_l,AFC^2`.
+pub fn plant_library() -> Result<Library, FitError> {
+    let mut library = Library::polynomial(&PLANT_VARIABLES, 2, true)?;
+    let square = library.monomial(&[("cl_afc", 2)], &[])?;
+    library.exclude_term(&square);
+    Ok(library)
+}
+
+/// A run's regressors at every sample for jet `side`, with `cl_afc` taken from `cl_afc`.
+fn variables(signals: &RunSignals, side: usize, cl_afc: &[f64]) -> Vec<[f64; 6]> {
+    let cmu = &signals.cmu[side];
+    (0..signals.len())
+        .map(|k| {
+            let mut vars = [0.0; 6];
+            vars[plant_var::CL_AFC] = cl_afc[k];
+            vars[plant_var::CMU] = cmu[k];
+            vars[plant_var::DCMU] = if k == 0 { 0.0 } else { cmu[k] - cmu[k - 1] };
+            vars[plant_var::ALPHA] = signals.alpha_deg[k].to_radians();
+            vars
+        })
+        .collect()
+}
+
+/// Fits jet `side` (0 = port, 1 = starboard) on `runs`; returns the core's model and the report.
+pub fn fit_plant(
+    runs: &[PlantRun<'_>],
+    side: usize,
+    sample_hz: f64,
+    config: &PlantConfig,
+) -> Result<(SparseModel, SparseFit), FitError> {
+    let library = plant_library()?;
+    let filtered: Vec<Vec<f64>> =
+        runs.iter().map(|run| zero_phase_lowpass(&run.signals.cl, config.corner_hz, sample_hz)).collect();
+    let (mut samples, mut targets) = (Vec::new(), Vec::new());
+    for (run, smooth) in runs.iter().zip(&filtered) {
+        let vars = variables(run.signals, side, smooth);
+        for k in run.train.start..run.train.end.saturating_sub(1) {
+            samples.push(vars[k]);
+            targets.push(smooth[k + 1] - smooth[k]);
+        }
+    }
+    let problem = QrProblem::new(&library.theta(&samples)?, &targets)?;
+    let stls = StlsConfig { threshold: 0.0, alpha: 0.0, max_iter: 20, unbias: true, normalisation: Normalisation::Rms };
+    let thresholds = log_thresholds(&problem, Normalisation::Rms, config.n_thresholds, config.min_fraction)?;
+    let swept = sweep(&problem, &stls, &thresholds)?;
+    let heldout = |coefficients: &[f64]| score(&library, runs, &filtered, side, coefficients);
+    let mut scored = swept.select(heldout, &SelectionConfig::default())?;
+    scored.selected = select_index(&scored, SelectBy::FreeRun).ok_or(FitError::NoPlantModel { side })?;
+    let mut coefficients = scored.selected().point.coefficients.clone();
+    add_identity(&library, &mut coefficients)?;
+    let model = library.to_sparse_model(&coefficients)?;
+    let report = sparse_fit(&library, &scored, SelectBy::FreeRun, scored.selected, &coefficients, targets.len());
+    Ok((model, report))
+}
+
+/// Turns increment coefficients into the absolute form of eq. 5 (`C[k+1] = C[k] + ...`).
+fn add_identity(library: &Library, coefficients: &mut [f64]) -> Result<(), FitError> {
+    let identity = library.monomial(&[("cl_afc", 1)], &[])?;
+    let slot = library
+        .terms()
+        .iter()
+        .position(|term| *term == identity)
+        .ok_or(FitError::Internal("the plant library lacks C_l,AFC"))?;
+    coefficients[slot] += 1.0;
+    Ok(())
+}
+
+/// Held-out one-step and free-run errors of an increment model.
+fn score(
+    library: &Library,
+    runs: &[PlantRun<'_>],
+    filtered: &[Vec<f64>],
+    side: usize,
+    coefficients: &[f64],
+) -> HeldoutScore {
+    let (mut one_step_sq, mut n_one_step) = (0.0, 0usize);
+    let mut free_run_errors = Vec::new();
+    for (run, smooth) in runs.iter().zip(filtered) {
+        let vars = variables(run.signals, side, smooth);
+        for k in run.heldout.start..run.heldout.end.saturating_sub(1) {
+            let predicted = library.predict(coefficients, &vars[k]).unwrap_or(f64::NAN);
+            one_step_sq += (predicted - (smooth[k + 1] - smooth[k])).powi(2);
+            n_one_step += 1;
+        }
+        let simulated = simulate_increments(library, coefficients, run.signals, side, run.heldout.end);
+        for k in run.heldout.clone() {
+            if run.signals.cl[k].is_finite() {
+                free_run_errors.push(simulated[k] - run.signals.cl[k]);
+            }
+        }
+    }
+    let rms = |sum: f64, n: usize| if n == 0 { f64::NAN } else { (sum / n as f64).sqrt() };
+    let free_run_sq: f64 = free_run_errors.iter().map(|e| e * e).sum();
+    HeldoutScore {
+        one_step_rms: rms(one_step_sq, n_one_step),
+        free_run_rms: Some(rms(free_run_sq, free_run_errors.len())),
+        n_samples: effective_samples(free_run_errors.len(), lag_one_autocorrelation(&free_run_errors)),
+    }
+}
+
+/// Open-loop simulation of an increment model from rest over the first `end` samples, as the
+/// core runs the plant (from zero, on the recorded Cmu).
+fn simulate_increments(
+    library: &Library,
+    coefficients: &[f64],
+    signals: &RunSignals,
+    side: usize,
+    end: usize,
+) -> Vec<f64> {
+    let mut state = 0.0f64;
+    let mut out = Vec::with_capacity(end);
+    let zeros = vec![0.0; signals.len()];
+    let inputs = variables(signals, side, &zeros);
+    for mut vars in inputs.into_iter().take(end) {
+        out.push(state);
+        vars[plant_var::CL_AFC] = state;
+        let increment = library.predict(coefficients, &vars).unwrap_or(f64::NAN);
+        state += increment;
+        if state.is_nan() || state.abs() > DIVERGED {
+            state = f64::NAN;
+        }
+    }
+    out
+}
+
+/// The starboard model mirrored from the port one, for datasets that blow one side only: the
+/// mirror image of the wing gives `C_stbd[k+1] = -f_port(-C_stbd[k], Cmu, dCmu, alpha)`, so a
+/// term with an even power of `C_l,AFC` changes sign and one with an odd power keeps it.
+#[must_use]
+pub fn mirrored(port: &SparseModel) -> SparseModel {
+    let mut starboard = *port;
+    for term in starboard.terms.iter_mut() {
+        if term.monomial.powers[plant_var::CL_AFC] % 2 == 0 {
+            term.coeff = -term.coeff;
+        }
+    }
+    starboard
+}

@@ -1,0 +1,135 @@
+//! What the plant and coupling fits share: the threshold sweep on a library, held-out scoring,
+//! the selection of one model, and the record of the sweep for the model card.
+//!
+//! Selection: held-out errors of neighbouring samples are strongly correlated (the errors of a
+//! free-running model drift slowly), so counting every sample as independent would make any
+//! extra term "significant". The information criterion therefore uses the effective number of
+//! samples of an AR(1) error, `n_eff = n (1 - r1) / (1 + r1)` with `r1` the lag-one
+//! autocorrelation of the held-out error (Bartlett 1946; von Storch & Zwiers, Statistical
+//! Analysis in Climate Research, section 17.1).
+
+use estimator_core::coeffs::MAX_TERMS;
+use serde::Serialize;
+
+use crate::sindy::{InformationCriterion, Library, ScoredPoint, ScoredSweep};
+
+/// One distinct model of a sweep, for reports.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SweepRow {
+    /// The smallest swept threshold that gave this support.
+    pub threshold: f64,
+    /// Number of terms.
+    pub n_terms: usize,
+    /// Held-out one-step RMS error.
+    pub heldout_one_step_rms: f64,
+    /// Held-out free-run RMS error (the plant), when simulated.
+    pub heldout_free_run_rms: Option<f64>,
+    /// Effective number of held-out samples behind the criterion.
+    pub heldout_effective_samples: usize,
+    /// Information criterion (BIC with the effective sample size); `None` if not eligible.
+    pub criterion: Option<f64>,
+    /// On the Pareto front of (terms, held-out error).
+    pub pareto: bool,
+}
+
+/// A fitted sparse model with its sweep.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SparseFit {
+    /// `(term name, coefficient)` of the selected model, in library order.
+    pub terms: Vec<(String, f64)>,
+    /// The sweep's distinct models.
+    pub sweep: Vec<SweepRow>,
+    /// Index of the selected model in `sweep`.
+    pub selected: usize,
+    /// Number of training samples.
+    pub n_train: usize,
+}
+
+impl SparseFit {
+    /// The selected row.
+    #[must_use]
+    pub fn selected_row(&self) -> Option<&SweepRow> {
+        self.sweep.get(self.selected)
+    }
+}
+
+/// Lag-one autocorrelation of a sequence (0 for fewer than three values or no variance).
+#[must_use]
+pub fn lag_one_autocorrelation(values: &[f64]) -> f64 {
+    if values.len() < 3 {
+        return 0.0;
+    }
+    let mean = values.iter().sum::<f64>() / values.len() as f64;
+    let variance: f64 = values.iter().map(|v| (v - mean).powi(2)).sum();
+    let covariance: f64 = values.windows(2).map(|pair| (pair[0] - mean) * (pair[1] - mean)).sum();
+    if variance > 0.0 { (covariance / variance).clamp(-0.999, 0.999) } else { 0.0 }
+}
+
+/// Effective number of independent samples of `n` values with lag-one autocorrelation `r1`.
+#[must_use]
+pub fn effective_samples(n: usize, r1: f64) -> usize {
+    let factor = if r1 > 0.0 { (1.0 - r1) / (1.0 + r1) } else { 1.0 };
+    ((n as f64 * factor).round() as usize).clamp(1.min(n), n)
+}
+
+/// The held-out error measure a selection uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SelectBy {
+    /// The one-step error (a static map such as the coupling operator).
+    OneStep,
+    /// The free-run error (a dynamic model simulated open loop, as the core runs the plant).
+    FreeRun,
+}
+
+/// BIC of one scored model on the chosen held-out error, with the effective sample size
+/// carried in `HeldoutScore::n_samples`; `None` when it has more than [`MAX_TERMS`] terms or
+/// no finite error.
+fn criterion_of(point: &ScoredPoint, by: SelectBy) -> Option<f64> {
+    let rms = match by {
+        SelectBy::OneStep => Some(point.heldout.one_step_rms),
+        SelectBy::FreeRun => point.heldout.free_run_rms,
+    }?;
+    let eligible = point.point.n_terms <= MAX_TERMS && rms.is_finite() && point.heldout.n_samples > 0;
+    let mse = rms.max(1e-300).powi(2);
+    eligible.then(|| InformationCriterion::Bic.value(point.heldout.n_samples, mse, point.point.n_terms))
+}
+
+/// Picks the model with the smallest [`criterion_of`]; ties go to fewer terms. `None` when no
+/// model is eligible.
+#[must_use]
+pub fn select_index(scored: &ScoredSweep, by: SelectBy) -> Option<usize> {
+    let candidates = scored.points.iter().enumerate().filter_map(|(idx, point)| Some((idx, criterion_of(point, by)?)));
+    candidates
+        .min_by(|a, b| {
+            a.1.total_cmp(&b.1).then(scored.points[a.0].point.n_terms.cmp(&scored.points[b.0].point.n_terms))
+        })
+        .map(|(idx, _)| idx)
+}
+
+/// The report of a scored sweep with `selected` chosen.
+#[must_use]
+pub fn sparse_fit(
+    library: &Library,
+    scored: &ScoredSweep,
+    by: SelectBy,
+    selected: usize,
+    coefficients: &[f64],
+    n_train: usize,
+) -> SparseFit {
+    let names = library.term_names();
+    let terms = names.into_iter().zip(coefficients).filter(|(_, c)| **c != 0.0).map(|(name, &c)| (name, c)).collect();
+    let sweep = scored
+        .points
+        .iter()
+        .map(|point| SweepRow {
+            threshold: point.point.threshold,
+            n_terms: point.point.n_terms,
+            heldout_one_step_rms: point.heldout.one_step_rms,
+            heldout_free_run_rms: point.heldout.free_run_rms,
+            heldout_effective_samples: point.heldout.n_samples,
+            criterion: criterion_of(point, by),
+            pareto: point.pareto,
+        })
+        .collect();
+    SparseFit { terms, sweep, selected, n_train }
+}

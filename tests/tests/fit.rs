@@ -1,0 +1,74 @@
+//! Fitting and code generation: the committed default tables are the fit on the default
+//! synthetic campaign and are up to date; datasets that lack runs get clear errors.
+
+use firmware_sim::campaign::{KindName, Scenario};
+use firmware_sim::dataset::RunKind;
+use host_tools::codegen::{DEFAULT_PROVENANCE, check, default_model, default_target, render};
+use host_tools::fit::FitError;
+use host_tools::fit::pipeline::{FitConfig, fit_dataset};
+
+/// `host-tools codegen --check` on the committed model: the generated const tables are what
+/// the committed `models/default/model.bin` generates.
+#[test]
+fn generated_tables_are_up_to_date() {
+    let (set, _) = host_tools::model::load(Some(&default_model())).expect("the committed default model loads");
+    let text = render(&set, DEFAULT_PROVENANCE).expect("renders");
+    check(&default_target(), &text, "models/default").expect("estimator-core/src/coeffs/generated.rs is stale");
+    assert_eq!(set, estimator_core::coeffs::DEFAULT, "the compiled tables equal the committed blob bit for bit");
+}
+
+/// The committed default model is the fit on the default synthetic campaign: simulating the
+/// campaign and fitting it again gives the same blob, byte for byte.
+#[test]
+fn committed_default_model_is_the_fit_on_the_default_campaign() {
+    let dataset = Scenario::default().simulate(&|| {}).expect("the default campaign simulates");
+    let outcome = fit_dataset(&dataset, &FitConfig::default(), &|_| {}).expect("the default campaign fits");
+    let fitted = host_tools::model::encode(&outcome.set).expect("a valid set encodes");
+    let committed = std::fs::read(default_model().join("model.bin")).expect("committed blob");
+    assert!(fitted == committed, "re-run `host-tools fit` on the default campaign and `host-tools codegen`");
+    // Every block is reported on held-out data at every alpha.
+    for row in &outcome.report.heldout.per_alpha {
+        for value in [
+            row.egk_rms,
+            row.pressure_rms,
+            row.fused_rms,
+            row.plant_rms,
+            row.linear_rms,
+            row.coupled_rms,
+            row.noise_rms,
+        ] {
+            assert!(value.is_some_and(f64::is_finite), "{row:?}");
+        }
+    }
+}
+
+fn short(kinds: &[RunKind]) -> firmware_sim::dataset::Dataset {
+    let scenario = Scenario {
+        duration_s: 12.0,
+        alphas_deg: vec![10.0],
+        kinds: kinds.iter().map(|&kind| KindName(kind)).collect(),
+        ..Scenario::default()
+    };
+    let mut scenario = scenario;
+    scenario.excitation.blowing.delay_s = 1.0;
+    scenario.simulate(&|| {}).expect("simulates")
+}
+
+#[test]
+fn missing_runs_are_named() {
+    let roll_only = short(&[RunKind::Roll]);
+    let error = fit_dataset(&roll_only, &FitConfig::default(), &|_| {}).expect_err("no actuation runs");
+    assert!(matches!(error, FitError::MissingRuns { kind: RunKind::Actuation, .. }), "{error}");
+    assert!(error.to_string().contains("\"actuation\""), "{error}");
+    let actuation_only = short(&[RunKind::Actuation]);
+    let error = fit_dataset(&actuation_only, &FitConfig::default(), &|_| {}).expect_err("no roll runs");
+    assert!(error.to_string().contains("\"roll\""), "{error}");
+}
+
+#[test]
+fn without_roll_plus_actuation_runs_the_coupling_operator_is_zero_and_said_so() {
+    let dataset = short(&[RunKind::Roll, RunKind::Actuation]);
+    let outcome = fit_dataset(&dataset, &FitConfig::default(), &|_| {}).expect("fits");
+    assert_eq!(outcome.set.coupling.n_terms, 0);
+    assert!(outcome.report.notes.iter().any(|note| note.contains("coupling operator is zero")));
+}
