@@ -3,7 +3,7 @@
 # for the flight controller's Cortex-M4F. Safe to run again: every install step is idempotent.
 #
 #   ./ci.sh          all jobs
-#   ./ci.sh JOB ...  some of: setup fmt clippy test nostd
+#   ./ci.sh JOB ...  some of: setup fmt clippy test doc nostd
 set -euo pipefail
 cd "$(dirname "$0")"
 
@@ -19,13 +19,15 @@ clippy() { cargo clippy --workspace --all-targets -- -D warnings; }
 
 test() { cargo test --workspace; }
 
+doc() { RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps; }
+
 nostd() {
     cargo build -p estimator-core --target thumbv7em-none-eabihf --release
     cargo build -p estimator-core --target thumbv7em-none-eabihf --release --features defmt
 }
 
 jobs=("$@")
-[ ${#jobs[@]} -gt 0 ] || jobs=(setup fmt clippy test nostd)
+[ ${#jobs[@]} -gt 0 ] || jobs=(setup fmt clippy test doc nostd)
 for job in "${jobs[@]}"; do
     echo "== ci: $job"
     "$job"

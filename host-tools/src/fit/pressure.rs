@@ -18,9 +18,10 @@
 //!    step the state belongs to, because the core predicts step `k` as `A a_{k-1} + B u_k`.
 //! 5. Stability: if the spectral radius of `A` exceeds the configured bound, `A` is scaled to it
 //!    and `B` refitted with that `A`.
-//! 6. Noise: `R` per tap from the median absolute deviation of first differences (white noise
-//!    of variance `sigma^2` has first differences of variance `2 sigma^2`; a slow signal adds
-//!    only `(omega dt)^2` of its variance at 1 kHz; the median ignores spikes and steps);
+//! 6. Noise: `R` per tap from the median absolute deviation of second differences (white noise
+//!    of variance `sigma^2` has second differences of variance `6 sigma^2`; a signal at
+//!    `omega` keeps only `(omega dt)^4` of its variance, about 1e-8 for 3 Hz at 1 kHz; the
+//!    median ignores spikes and steps; Gasser, Sroka & Jennen-Steinmetz, Biometrika 73, 1986);
 //!    `Q = q_scale * cov(a_k - A a_{k-1} - B u_k)`, with `q_scale` from a grid, chosen to
 //!    minimise the `R`-weighted mean squared innovation on the training data (the steady-state
 //!    Kalman filter of the true model minimises the one-step prediction error: prediction-error
@@ -247,8 +248,8 @@ impl PressureModelF64 {
     ///
     /// # Errors
     ///
-    /// [`PressureFitError::NonFinite`] when the rank exceeds [`PRESSURE_RANK`] or a value is not
-    /// finite in f32.
+    /// [`PressureFitError::InvalidModel`] when the rank exceeds [`PRESSURE_RANK`] or the matrices'
+    /// shapes disagree with it; [`PressureFitError::NonFinite`] when a value is not finite in f32.
     pub fn to_core(&self) -> Result<PressureModel, PressureFitError> {
         let rank = self.rank();
         let shapes_ok = rank <= PRESSURE_RANK
@@ -256,13 +257,13 @@ impl PressureModelF64 {
             && self.c.shape() == (N_TAPS, rank)
             && self.gain.shape() == (rank, N_TAPS);
         if !shapes_ok {
-            return Err(PressureFitError::NonFinite("pressure model shapes"));
+            return Err(PressureFitError::InvalidModel("the rank exceeds PRESSURE_RANK or B, C, K do not match it"));
         }
         let at = |matrix: &DMatrix<f64>, row: usize, col: usize| {
             if row < matrix.nrows() && col < matrix.ncols() { matrix[(row, col)] as f32 } else { 0.0 }
         };
         let model = PressureModel {
-            rank: u8::try_from(rank).map_err(|_| PressureFitError::NonFinite("rank"))?,
+            rank: u8::try_from(rank).map_err(|_| PressureFitError::InvalidModel("the rank does not fit in u8"))?,
             a: std::array::from_fn(|row| std::array::from_fn(|col| at(&self.a, row, col))),
             b: std::array::from_fn(|row| std::array::from_fn(|col| at(&self.b, row, col))),
             c: std::array::from_fn(|tap| std::array::from_fn(|mode| at(&self.c, tap, mode))),
@@ -331,7 +332,7 @@ pub struct PressureFitReport {
     pub stabilised: bool,
     /// Chosen factor of the residual covariance for `Q`.
     pub q_scale: f64,
-    /// Doubling steps of the DARE and its relative residual.
+    /// Doubling steps of the DARE solver.
     pub dare_iterations: usize,
     /// Relative residual of the DARE at the solution.
     pub dare_residual: f64,
@@ -411,6 +412,9 @@ pub enum PressureFitError {
     /// A fitted value is not finite.
     #[error("non-finite value in the {0}")]
     NonFinite(&'static str),
+    /// An f64 model's shapes do not make a core table.
+    #[error("the pressure model cannot become a core table: {0}")]
+    InvalidModel(&'static str),
 }
 
 /// Fits the pressure path on the training samples in `runs` (module docs, steps 1-8).

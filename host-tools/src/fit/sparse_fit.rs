@@ -94,7 +94,7 @@ fn criterion_of(point: &ScoredPoint, by: SelectBy) -> Option<f64> {
     eligible.then(|| InformationCriterion::Bic.value(point.heldout.n_samples, mse, point.point.n_terms))
 }
 
-/// Picks the model with the smallest [`criterion_of`]; ties go to fewer terms. `None` when no
+/// Picks the model with the smallest `criterion_of`; ties go to fewer terms. `None` when no
 /// model is eligible.
 #[must_use]
 pub fn select_index(scored: &ScoredSweep, by: SelectBy) -> Option<usize> {
