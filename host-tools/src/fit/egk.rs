@@ -287,6 +287,15 @@ pub fn fit_at(alpha_deg: f64, dt_s: f64, prior: &EgkParams, data: &[EgkData<'_>]
     }
 }
 
+/// Training RMS of the eGK with the prior's dynamics and its least-squares output map: a
+/// cheap score of the inputs (for instance of the roll-rate differentiator) before the fit.
+#[must_use]
+pub fn linear_map_rms(alpha_deg: f64, dt_s: f64, prior: &EgkParams, data: &[EgkData<'_>]) -> f64 {
+    let mut start = Coordinates::from_params(prior);
+    linear_output_map(&mut start, alpha_deg, dt_s, prior.half_span_time_s, data);
+    rms_of(&start, alpha_deg, dt_s, prior.half_span_time_s, data)
+}
+
 /// With the prior's dynamics, the output map is linear: start from its least-squares weights.
 fn linear_output_map(start: &mut Coordinates, alpha_deg: f64, dt_s: f64, half_span_time_s: f32, data: &[EgkData<'_>]) {
     let params = start.params(half_span_time_s);

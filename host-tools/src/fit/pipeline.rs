@@ -15,7 +15,7 @@ use serde::Serialize;
 
 use super::FitError;
 use super::coupling::{CouplingConfig, CouplingRun, coupling_library, fit_coupling};
-use super::egk::{EgkData, EgkFit, fit_at, simulate};
+use super::egk::{EgkData, EgkFit, fit_at, linear_map_rms, simulate};
 use super::fusion::{FusionData, FusionFit, fit_fusion};
 use super::heldout::{HeldoutReport, evaluate_heldout};
 use super::plant::{PlantConfig, PlantRun, fit_plant, mirrored};
@@ -25,11 +25,11 @@ use super::sparse_fit::SparseFit;
 use super::split::Split;
 use crate::replay::replay_run;
 
-/// Corner of the roll-rate differentiator, Hz (keeps the 3 Hz roll content, rejects encoder
-/// quantisation noise).
-pub const RATE_CORNER_HZ: f64 = 30.0;
-/// Corner of the roll-acceleration differentiator, Hz.
-pub const ACCEL_CORNER_HZ: f64 = 20.0;
+/// Corners of the roll-rate differentiator tried, Hz: a higher corner lags less, a lower one
+/// passes less encoder quantisation noise; the data decide.
+pub const RATE_CORNERS_HZ: [f64; 6] = [20.0, 30.0, 45.0, 65.0, 90.0, 130.0];
+/// Corners of the roll-acceleration differentiator tried, Hz.
+pub const ACCEL_CORNERS_HZ: [f64; 6] = [15.0, 20.0, 30.0, 45.0, 65.0, 90.0];
 
 /// Settings of the whole fit.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -133,11 +133,15 @@ pub fn fit_dataset(dataset: &Dataset, config: &FitConfig, progress: Progress<'_>
     let mut notes = Vec::new();
     let sample_hz = common_rate(dataset)?;
     let dt_s = 1.0 / sample_hz;
-    let mut set = CoefficientSet { dt_s: dt_s as f32, rate_filter: rate_filter(dt_s), ..PRIOR };
-    let signals: Vec<RunSignals> =
-        dataset.runs.par_iter().map(|run| RunSignals::new(run, &set.rate_filter, dt_s)).collect();
     let roll =
         indices_of(dataset, RunKind::Roll, "the disturbance model (eGK and pressure map) is fitted on roll runs")?;
+    let clock = Instant::now();
+    progress("roll-rate differentiator");
+    let rate_filter = choose_rate_filter(dataset, &roll, &config.split, dt_s);
+    let mut set = CoefficientSet { dt_s: dt_s as f32, rate_filter, ..PRIOR };
+    timing.push(("rate filter".to_owned(), clock.elapsed().as_secs_f64()));
+    let signals: Vec<RunSignals> =
+        dataset.runs.par_iter().map(|run| RunSignals::new(run, &set.rate_filter, dt_s)).collect();
 
     let clock = Instant::now();
     progress("eGK (Levenberg-Marquardt per angle of attack)");
@@ -187,11 +191,40 @@ pub fn fit_dataset(dataset: &Dataset, config: &FitConfig, progress: Progress<'_>
     Ok(FitOutcome { set, report })
 }
 
-/// The core's differentiators at step `dt_s`: poles `exp(-2 pi f dt)`.
+/// The core's differentiators at step `dt_s` with the given corners: poles `exp(-2 pi f dt)`.
 #[must_use]
-pub fn rate_filter(dt_s: f64) -> RateFilter {
+pub fn rate_filter(dt_s: f64, rate_corner_hz: f64, accel_corner_hz: f64) -> RateFilter {
     let pole = |corner_hz: f64| (-std::f64::consts::TAU * corner_hz * dt_s).exp() as f32;
-    RateFilter { rate_pole: pole(RATE_CORNER_HZ), accel_pole: pole(ACCEL_CORNER_HZ) }
+    RateFilter { rate_pole: pole(rate_corner_hz), accel_pole: pole(accel_corner_hz) }
+}
+
+/// The differentiator corners that let the eGK (prior dynamics, least-squares output map) fit
+/// the training part of the roll runs best, pooled over the angles of attack.
+fn choose_rate_filter(dataset: &Dataset, roll: &[usize], split: &Split, dt_s: f64) -> RateFilter {
+    let half_span_time_s = (dataset.wing.span_m / (2.0 * dataset.tunnel.u_inf_mps)) as f32;
+    let candidates: Vec<RateFilter> = RATE_CORNERS_HZ
+        .iter()
+        .flat_map(|&rate| ACCEL_CORNERS_HZ.iter().map(move |&accel| (rate, accel)))
+        .map(|(rate, accel)| rate_filter(dt_s, rate, accel))
+        .collect();
+    let scores: Vec<f64> = candidates
+        .par_iter()
+        .map(|filter| {
+            let mut sum_sq = 0.0;
+            for &idx in roll {
+                let run = &dataset.runs[idx];
+                let signals = RunSignals::new(run, filter, dt_s);
+                let data = [EgkData { signals: &signals, range: split.training(signals.len()) }];
+                let mut prior = params_at(&PRIOR, run.meta.alpha_deg as f32);
+                prior.half_span_time_s = half_span_time_s;
+                sum_sq += linear_map_rms(run.meta.alpha_deg, dt_s, &prior, &data).powi(2);
+            }
+            sum_sq
+        })
+        .collect();
+    let best =
+        (0..candidates.len()).filter(|&idx| scores[idx].is_finite()).min_by(|&a, &b| scores[a].total_cmp(&scores[b]));
+    best.map_or_else(|| rate_filter(dt_s, RATE_CORNERS_HZ[1], ACCEL_CORNERS_HZ[1]), |idx| candidates[idx])
 }
 
 fn common_rate(dataset: &Dataset) -> Result<f64, FitError> {

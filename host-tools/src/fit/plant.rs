@@ -60,11 +60,22 @@ pub struct PlantRun<'a> {
 }
 
 /// The paper's plant library: products up to degree 2 of `(C_l,AFC, Cmu, dCmu, alpha)`
-/// including the constant, without `C_l,AFC^2`.
+/// including the constant, without `C_l,AFC^2`, plus the alpha-interactions of degree 3.
 pub fn plant_library() -> Result<Library, FitError> {
     let mut library = Library::polynomial(&PLANT_VARIABLES, 2, true)?;
     let square = library.monomial(&[("cl_afc", 2)], &[])?;
     library.exclude_term(&square);
+    // The paper fitted separate models at low and high alpha; with alpha as an input, the
+    // alpha-dependence of the gain and of the time constant needs the degree-3 terms that
+    // multiply the degree-2 actuation terms by alpha.
+    for factors in [
+        &[("cmu", 2), ("alpha", 1)][..],
+        &[("cmu", 1), ("alpha", 2)],
+        &[("cl_afc", 1), ("alpha", 2)],
+        &[("cl_afc", 1), ("cmu", 1), ("alpha", 1)],
+    ] {
+        library.push(library.monomial(factors, &[])?)?;
+    }
     Ok(library)
 }
 
