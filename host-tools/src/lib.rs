@@ -5,8 +5,10 @@
 
 pub mod analysis;
 pub mod codegen;
+pub mod evaluate;
 pub mod fit;
 pub mod model;
 pub mod plot;
 pub mod replay;
+pub mod report;
 pub mod sindy;

@@ -31,6 +31,42 @@ enum Command {
     Fit(FitArgs),
     /// Write a model's coefficient set as const tables into estimator-core (or check them).
     Codegen(CodegenArgs),
+    /// Run the estimator (the code that flies) over a dataset; write every stage's estimates.
+    Replay(ReplayArgs),
+    /// The paper's tables and figures on held-out data, as a report folder.
+    Evaluate(EvaluateArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct ReplayArgs {
+    /// Dataset folder (or its manifest.toml).
+    #[arg(long)]
+    data: PathBuf,
+    /// Model folder or model.bin (default: the built-in tables).
+    #[arg(long)]
+    model: Option<PathBuf>,
+    /// Folder for the per-run estimate CSVs (replaced atomically).
+    #[arg(long)]
+    out: PathBuf,
+}
+
+#[derive(Debug, clap::Args)]
+struct EvaluateArgs {
+    /// Dataset folder (or its manifest.toml).
+    #[arg(long)]
+    data: PathBuf,
+    /// Model folder or model.bin (default: the built-in tables).
+    #[arg(long)]
+    model: Option<PathBuf>,
+    /// Report folder to write (report.html, report.md, SVG plots, evaluation.json).
+    #[arg(long)]
+    report: PathBuf,
+    /// Seed of the noise added in the robustness test.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Share of every run, at its end, that is evaluated (must match the fit's).
+    #[arg(long = "holdout-fraction", default_value_t = host_tools::fit::split::DEFAULT_HOLDOUT_FRACTION)]
+    holdout_fraction: f64,
 }
 
 #[derive(Debug, clap::Args)]
@@ -102,6 +138,8 @@ fn main() -> ExitCode {
         Command::Superposition(args) => superposition(args),
         Command::Fit(args) => fit(args),
         Command::Codegen(args) => codegen(args),
+        Command::Replay(args) => replay(args),
+        Command::Evaluate(args) => evaluate(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -235,6 +273,87 @@ fn codegen(args: CodegenArgs) -> anyhow::Result<()> {
         eprintln!("wrote {}", target.display());
     }
     Ok(())
+}
+
+/// `replay`: dataset + model -> per-run estimate CSVs.
+fn replay(args: ReplayArgs) -> anyhow::Result<()> {
+    let started = Instant::now();
+    let dataset = firmware_sim::dataset::load_dataset(&args.data)?;
+    let (set, source) = host_tools::model::load(args.model.as_deref())?;
+    let spinner = spinner(format!("replaying {} runs", dataset.runs.len()));
+    let described = format!("data {}, model {source}", args.data.display());
+    let n_runs = host_tools::replay::write_replay(&args.out, &dataset, &set, &described)?;
+    spinner.finish_and_clear();
+    eprintln!("replayed {n_runs} runs into {} in {:.1} s", args.out.display(), started.elapsed().as_secs_f64());
+    Ok(())
+}
+
+/// `evaluate`: the paper's analysis on held-out data, as a report folder.
+fn evaluate(args: EvaluateArgs) -> anyhow::Result<()> {
+    use host_tools::evaluate::{EvaluationConfig, Replayed, evaluate, evaluation_report, figures, with_balance_noise};
+    let started = Instant::now();
+    let dataset = firmware_sim::dataset::load_dataset(&args.data)?;
+    let (set, source) = host_tools::model::load(args.model.as_deref())?;
+    let split = host_tools::fit::split::Split { holdout_fraction: args.holdout_fraction };
+    let config = EvaluationConfig { split, seed: args.seed, ..EvaluationConfig::default() };
+    let spinner = spinner("evaluating: replay, tables, noise sweep".into());
+    let (evaluation, replayed) = evaluate(&dataset, &set, &config)?;
+    spinner.set_message("evaluating: figures");
+    let sigma = 0.001;
+    let noisy = with_balance_noise(&dataset, sigma, args.seed);
+    let fit_config = host_tools::fit::pipeline::FitConfig { split, ..Default::default() };
+    let noisy_figure = match host_tools::fit::pipeline::refit_coupling(&noisy, &set, &fit_config) {
+        Ok(refitted) => Some(Replayed::new(&noisy, &refitted)),
+        Err(_) => None,
+    };
+    let figures = figures(&dataset, &replayed, &split, &evaluation, noisy_figure.as_ref().map(|r| (&noisy, r, sigma)));
+    let described = format!("Data `{}`, model {source}.", args.data.display());
+    let report = evaluation_report(&evaluation, figures, &described);
+    let json = serde_json::json!({ "data": args.data.display().to_string(), "model": source.to_string(), "evaluation": evaluation });
+    host_tools::report::write_report(&args.report, &report, "evaluation.json", &json)
+        .with_context(|| format!("writing the report {}", args.report.display()))?;
+    spinner.finish_and_clear();
+    print_evaluation(&evaluation);
+    println!("report: {}", args.report.join("report.html").display());
+    eprintln!("evaluated in {:.1} s", started.elapsed().as_secs_f64());
+    Ok(())
+}
+
+/// The evaluation's tables on stdout.
+fn print_evaluation(evaluation: &host_tools::evaluate::Evaluation) {
+    println!("Table 1 (held-out): alpha, sigma(dCl)/mean(ClRA), sigma(dCl)/sigma(ClRA)");
+    for row in &evaluation.table1 {
+        println!("  {:>5.1}  {:>6.1} %  {:>6.1} %", row.alpha_deg, 100.0 * row.ratio_to_mean, 100.0 * row.ratio_to_std);
+    }
+    println!("Tables 2 and 3 (held-out): alpha, E_SINDy/E_lin, corr linear, corr operator");
+    for row in &evaluation.coupling {
+        println!("  {:>5.1}  {:>6.3}  {:>7.4}  {:>7.4}", row.alpha_deg, row.ratio, row.corr_linear, row.corr_operator);
+    }
+    println!("Blocks (held-out): alpha, block, RMS, correlation, RMS / balance noise");
+    for row in &evaluation.blocks {
+        println!(
+            "  {:>5.1}  {:<9} {:>10.3e}  {:>7.4}  {:>5.2}",
+            row.alpha_deg, row.block, row.rms, row.correlation, row.rms_over_noise
+        );
+    }
+    println!(
+        "Noise robustness (operator refitted on noisy data): sigma, alpha, E_SINDy/E_lin, corr linear, corr operator"
+    );
+    for level in &evaluation.noise_robustness {
+        for row in &level.per_alpha {
+            println!(
+                "  {:.2e}  {:>5.1}  {:>6.3}  {:>7.4}  {:>7.4}",
+                level.sigma, row.alpha_deg, row.ratio, row.corr_linear, row.corr_operator
+            );
+        }
+    }
+}
+
+fn spinner(message: String) -> ProgressBar {
+    let spinner = ProgressBar::new_spinner();
+    spinner.enable_steady_tick(std::time::Duration::from_millis(120));
+    spinner.set_message(message);
+    spinner
 }
 
 fn progress_bar(length: u64, message: &'static str) -> ProgressBar {

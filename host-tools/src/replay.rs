@@ -26,3 +26,126 @@ pub fn replay_run(set: &CoefficientSet, run: &Run) -> Vec<Output> {
     let mut estimator = Estimator::new(set);
     (0..run.channels.len()).map(|sample_idx| estimator.step(&input_at(run, sample_idx))).collect()
 }
+
+/// The marker file of a replay folder.
+pub const REPLAY_MARKER: &str = "replay.toml";
+
+/// The columns of a replay CSV: the recorded inputs the estimate depends on, the balance, every
+/// stage's output and the health flags.
+pub const REPLAY_COLUMNS: [&str; 20] = [
+    "t_s",
+    "phi_deg",
+    "alpha_deg",
+    "cmu_port",
+    "cmu_stbd",
+    "cl",
+    "cl_egk",
+    "cl_pressure",
+    "cl_roll",
+    "cl_afc_port",
+    "cl_afc_stbd",
+    "cl_afc",
+    "cl_linear",
+    "coupling",
+    "cl_est",
+    "phi_dot_rad_s",
+    "health_flags",
+    "cp_missing",
+    "cp_rejected",
+    "cp_isolated",
+];
+
+/// Why a replay could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum ReplayError {
+    /// Writing the folder failed.
+    #[error(transparent)]
+    Folder(#[from] firmware_sim::atomic::FolderError),
+    /// Writing a file failed.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: std::path::PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+}
+
+/// Replays every run of `dataset` and writes one CSV per run (same relative path as the run
+/// file) into `dir`, with `replay.toml` naming the data and the model. Complete or absent.
+pub fn write_replay(
+    dir: &std::path::Path,
+    dataset: &firmware_sim::dataset::Dataset,
+    set: &CoefficientSet,
+    source: &str,
+) -> Result<usize, ReplayError> {
+    use rayon::prelude::*;
+    let tables: Vec<String> = dataset.runs.par_iter().map(|run| replay_csv(run, &replay_run(set, run))).collect();
+    let mut manifest = format!("# Written by host-tools replay\nsource = {source:?}\ncolumns = {:?}\n", REPLAY_COLUMNS);
+    for run in &dataset.runs {
+        manifest.push_str(&format!(
+            "\n[[run]]\nfile = {:?}\nkind = {:?}\nalpha_deg = {}\n",
+            run.meta.file.display().to_string(),
+            run.meta.kind.as_str(),
+            run.meta.alpha_deg
+        ));
+    }
+    firmware_sim::atomic::write_folder::<ReplayError>(dir, REPLAY_MARKER, |tmp| {
+        let io = |path: &std::path::Path| {
+            let path = dir.join(path.strip_prefix(tmp).unwrap_or(path));
+            move |source| ReplayError::Io { path, source }
+        };
+        std::fs::write(tmp.join(REPLAY_MARKER), &manifest).map_err(io(&tmp.join(REPLAY_MARKER)))?;
+        for (run, table) in dataset.runs.iter().zip(&tables) {
+            let path = tmp.join(&run.meta.file);
+            if let Some(parent) = path.parent() {
+                std::fs::create_dir_all(parent).map_err(io(parent))?;
+            }
+            std::fs::write(&path, table).map_err(io(&path))?;
+        }
+        Ok(())
+    })?;
+    Ok(dataset.runs.len())
+}
+
+/// One run's replay as CSV text.
+fn replay_csv(run: &Run, outputs: &[Output]) -> String {
+    use std::fmt::Write as _;
+    let channels = &run.channels;
+    let mut text = REPLAY_COLUMNS.join(",");
+    text.push('\n');
+    let number = |value: f64| if value.is_finite() { format!("{value}") } else { String::new() };
+    for (k, output) in outputs.iter().enumerate() {
+        let recorded = [
+            channels.t_s[k],
+            channels.phi_deg[k],
+            channels.alpha_at(k, run.meta.alpha_deg),
+            channels.cmu_port[k],
+            channels.cmu_stbd[k],
+            channels.cl[k],
+        ];
+        let estimates = [
+            output.cl_egk,
+            output.cl_pressure,
+            output.cl_roll,
+            output.cl_afc_port,
+            output.cl_afc_stbd,
+            output.cl_afc,
+            output.cl_linear,
+            output.coupling,
+            output.cl,
+            output.phi_dot_rad_s,
+        ];
+        let cells: Vec<String> = recorded
+            .into_iter()
+            .map(number)
+            .chain(estimates.into_iter().map(|value| number(f64::from(value))))
+            .chain(
+                [output.health.flags, output.health.cp_missing, output.health.cp_rejected, output.health.cp_isolated]
+                    .map(|bits| bits.to_string()),
+            )
+            .collect();
+        let _ = writeln!(text, "{}", cells.join(","));
+    }
+    text
+}

@@ -13,3 +13,6 @@ mod sindy;
 
 // Fitting and code generation: committed default tables, reproducibility, missing runs.
 mod fit;
+
+// Replay and evaluation: per-run estimates, report folders, missing kinds of run.
+mod evaluate;

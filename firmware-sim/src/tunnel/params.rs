@@ -108,7 +108,7 @@ impl Default for ActuatorParams {
             full_moment_at_alpha: [0.010, 0.0115, 0.011],
             sqrt_offset: 0.02,
             incidence_per_cmu_deg: 80.0,
-            lift_slope_gain_per_rad: 0.02,
+            lift_slope_gain_per_rad: 0.013,
             jet_span_fraction: 0.6,
             breakdown_effectiveness_loss: 0.4,
             measurement_rel_noise: 0.005,

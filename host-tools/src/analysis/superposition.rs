@@ -67,8 +67,18 @@ pub fn superposition_table(dataset: &Dataset) -> Result<Vec<SuperpositionRow>, S
     Ok(rows)
 }
 
-/// Table 1 at one angle of attack (the first run of each kind there).
+/// Table 1 at one angle of attack (the first run of each kind there), on every sample.
 pub fn superposition_at(dataset: &Dataset, alpha_deg: f64) -> Result<SuperpositionRow, SuperpositionError> {
+    superposition_over(dataset, alpha_deg, &|n_samples| 0..n_samples)
+}
+
+/// Table 1 at one angle of attack on the samples `samples(n)` of runs of `n` samples (for
+/// instance the held-out part).
+pub fn superposition_over(
+    dataset: &Dataset,
+    alpha_deg: f64,
+    samples: &dyn Fn(usize) -> std::ops::Range<usize>,
+) -> Result<SuperpositionRow, SuperpositionError> {
     let find = |kind| dataset.runs_of(kind, alpha_deg).next().ok_or(SuperpositionError::MissingRun { kind, alpha_deg });
     let (roll, actuation, both) = (find(RunKind::Roll)?, find(RunKind::Actuation)?, find(RunKind::RollActuation)?);
     let lengths = [roll, actuation, both].map(|run: &Run| run.channels.len());
@@ -76,7 +86,7 @@ pub fn superposition_at(dataset: &Dataset, alpha_deg: f64) -> Result<Superpositi
         return Err(SuperpositionError::LengthMismatch { alpha_deg, lengths });
     }
     let (mut delta, mut rollact) = (Vec::new(), Vec::new());
-    for sample_idx in 0..lengths[0] {
+    for sample_idx in samples(lengths[0]) {
         let (r, a, ra) =
             (roll.channels.cl[sample_idx], actuation.channels.cl[sample_idx], both.channels.cl[sample_idx]);
         if r.is_finite() && a.is_finite() && ra.is_finite() {

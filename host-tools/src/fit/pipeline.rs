@@ -407,6 +407,17 @@ fn fit_plants(
     Ok(reports)
 }
 
+/// Refits only the coupling operator of `set` on `dataset` (its disturbance and plant models
+/// stay): the paper's noise-robustness test refits the operator on noisy data.
+pub fn refit_coupling(dataset: &Dataset, set: &CoefficientSet, config: &FitConfig) -> Result<CoefficientSet, FitError> {
+    let dt_s = f64::from(set.dt_s);
+    let signals: Vec<RunSignals> =
+        dataset.runs.par_iter().map(|run| RunSignals::new(run, &set.rate_filter, dt_s)).collect();
+    let mut refitted = *set;
+    let _ = fit_coupling_on(dataset, &signals, config, &mut refitted, &mut Vec::new())?;
+    Ok(refitted)
+}
+
 /// The coupling operator on the roll+actuation runs, from the core's replay with a zero
 /// operator. Without such runs the operator stays zero (the linear superposition).
 fn fit_coupling_on(

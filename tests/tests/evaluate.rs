@@ -1,0 +1,98 @@
+//! Replay and evaluation: the replay writes every stage's estimate per run, the evaluation
+//! writes a complete report, and both degrade gracefully on datasets with fewer kinds of run.
+
+use firmware_sim::campaign::{KindName, Scenario};
+use firmware_sim::dataset::{RunKind, load_dataset, write_dataset};
+use host_tools::evaluate::{EvaluationConfig, evaluate, evaluation_report, figures};
+use host_tools::replay::{REPLAY_COLUMNS, write_replay};
+
+fn short(kinds: &[RunKind]) -> firmware_sim::dataset::Dataset {
+    let mut scenario = Scenario {
+        duration_s: 12.0,
+        alphas_deg: vec![0.0, 20.0],
+        kinds: kinds.iter().map(|&kind| KindName(kind)).collect(),
+        ..Scenario::default()
+    };
+    scenario.excitation.blowing.delay_s = 1.0;
+    scenario.simulate(&|| {}).expect("simulates")
+}
+
+#[test]
+fn replay_writes_every_stage_for_every_sample() {
+    let dataset = short(&[RunKind::Roll, RunKind::Actuation]);
+    let root = tempfile::tempdir().unwrap();
+    let out = root.path().join("replay");
+    let n_runs = write_replay(&out, &dataset, &estimator_core::coeffs::DEFAULT, "test").expect("writes");
+    assert_eq!(n_runs, 4);
+    let text = std::fs::read_to_string(out.join("runs/roll_a20.csv")).expect("per-run csv");
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some(REPLAY_COLUMNS.join(",").as_str()));
+    let rows: Vec<&str> = lines.collect();
+    assert_eq!(rows.len(), 12_000);
+    let last: Vec<&str> = rows[rows.len() - 1].split(',').collect();
+    assert_eq!(last.len(), REPLAY_COLUMNS.len());
+    let cl_est: f64 = last[14].parse().expect("a finite estimate");
+    assert!(cl_est.is_finite());
+    assert!(out.join("replay.toml").is_file());
+}
+
+#[test]
+fn evaluation_report_is_complete_on_the_three_kinds() {
+    let dataset = short(&[RunKind::Roll, RunKind::Actuation, RunKind::RollActuation]);
+    let config = EvaluationConfig { noise_levels: vec![0.001], ..EvaluationConfig::default() };
+    let (evaluation, replayed) = evaluate(&dataset, &estimator_core::coeffs::DEFAULT, &config).expect("evaluates");
+    assert_eq!(evaluation.table1.len(), 2);
+    assert_eq!(evaluation.coupling.len(), 2);
+    assert_eq!(evaluation.noise_robustness.len(), 1);
+    assert_eq!(evaluation.blocks.len(), 12, "six blocks at two angles of attack");
+    for row in &evaluation.coupling {
+        assert!(row.ratio.is_finite() && row.ratio > 0.0 && row.corr_linear.is_finite(), "{row:?}");
+    }
+    let figures = figures(&dataset, &replayed, &config.split, &evaluation, None);
+    assert!(figures.iter().any(|figure| figure.file == "fig10_operator.svg" && figure.svg.starts_with("<svg")));
+    let report = evaluation_report(&evaluation, figures, "test");
+    let root = tempfile::tempdir().unwrap();
+    let dir = root.path().join("report");
+    let json = serde_json::to_value(&evaluation).expect("serialises");
+    host_tools::report::write_report(&dir, &report, "evaluation.json", &json).expect("writes");
+    for file in ["report.html", "report.md", "evaluation.json", "fig07_plant.svg", "blocks.svg"] {
+        assert!(dir.join(file).is_file(), "{file}");
+    }
+    let html = std::fs::read_to_string(dir.join("report.html")).unwrap();
+    assert!(html.contains("Table 2: error with the coupling operator"));
+}
+
+#[test]
+fn evaluation_without_roll_plus_actuation_runs_says_what_is_missing() {
+    let dataset = short(&[RunKind::Roll, RunKind::Actuation]);
+    let config = EvaluationConfig { noise_levels: vec![0.001], ..EvaluationConfig::default() };
+    let (evaluation, _) = evaluate(&dataset, &estimator_core::coeffs::DEFAULT, &config).expect("evaluates");
+    assert!(evaluation.coupling.is_empty() && evaluation.table1.is_empty());
+    assert!(evaluation.notes.iter().any(|note| note.contains("roll+actuation")), "{:?}", evaluation.notes);
+}
+
+#[test]
+fn model_argument_accepts_the_folder_or_the_blob_and_refuses_garbage() {
+    let root = tempfile::tempdir().unwrap();
+    let default = host_tools::codegen::default_model();
+    let (from_folder, _) = host_tools::model::load(Some(&default)).expect("folder");
+    let (from_blob, _) = host_tools::model::load(Some(&default.join("model.bin"))).expect("blob");
+    assert_eq!(from_folder, from_blob);
+    let garbage = root.path().join("model.bin");
+    std::fs::write(&garbage, b"not a blob").unwrap();
+    let error = host_tools::model::load(Some(&garbage)).expect_err("garbage").to_string();
+    assert!(error.contains("model.bin") && error.contains("not a usable coefficient blob"), "{error}");
+}
+
+#[test]
+fn replayed_dataset_round_trips_through_disk() {
+    // Replay reads what the dataset writer wrote: the same estimates from memory and from disk.
+    let dataset = short(&[RunKind::Roll]);
+    let root = tempfile::tempdir().unwrap();
+    write_dataset(&root.path().join("data"), &dataset).unwrap();
+    let loaded = load_dataset(&root.path().join("data")).unwrap();
+    let set = estimator_core::coeffs::DEFAULT;
+    let from_memory = host_tools::replay::replay_run(&set, &dataset.runs[0]);
+    let from_disk = host_tools::replay::replay_run(&set, &loaded.runs[0]);
+    assert_eq!(from_memory, from_disk);
+}
