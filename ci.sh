@@ -11,6 +11,11 @@ setup() {
     # The toolchain itself comes from rust-toolchain.toml; add what a fresh machine lacks.
     rustup component add rustfmt clippy >/dev/null
     rustup target add thumbv7em-none-eabihf >/dev/null
+    # QEMU runs the firmware (netduinoplus2 = STM32F405) in the tests.
+    if ! command -v qemu-system-arm >/dev/null; then
+        if [ "$(id -u)" = 0 ]; then apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq qemu-system-arm >/dev/null
+        else sudo apt-get update -qq && sudo DEBIAN_FRONTEND=noninteractive apt-get install -y -qq qemu-system-arm >/dev/null; fi
+    fi
 }
 
 fmt() { cargo fmt --all -- --check; }
@@ -24,6 +29,7 @@ doc() { RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps; }
 nostd() {
     cargo build -p estimator-core --target thumbv7em-none-eabihf --release
     cargo build -p estimator-core --target thumbv7em-none-eabihf --release --features defmt
+    cargo build -p firmware-sim --bin firmware --no-default-features --features target --target thumbv7em-none-eabihf --release
 }
 
 jobs=("$@")

@@ -7,6 +7,9 @@
 //! [`dataset`], which every tool reads.
 #![cfg_attr(not(feature = "std"), no_std)]
 #![deny(missing_docs)]
+// The workspace forbids unsafe code; this package only denies it so that the firmware binary
+// (src/bin/firmware.rs) can allow it locally. The library keeps the workspace's rule.
+#![forbid(unsafe_code)]
 
 #[cfg(feature = "std")]
 pub mod atomic;
@@ -14,5 +17,9 @@ pub mod atomic;
 pub mod campaign;
 #[cfg(feature = "std")]
 pub mod dataset;
+pub mod frames;
+pub mod io;
+#[cfg(feature = "std")]
+pub mod sil;
 #[cfg(feature = "std")]
 pub mod tunnel;

@@ -9,6 +9,8 @@ pub mod evaluate;
 pub mod fit;
 pub mod model;
 pub mod plot;
+pub mod qemu;
 pub mod replay;
 pub mod report;
+pub mod sil;
 pub mod sindy;

@@ -35,6 +35,29 @@ enum Command {
     Replay(ReplayArgs),
     /// The paper's tables and figures on held-out data, as a report folder.
     Evaluate(EvaluateArgs),
+    /// Closed-loop SIL comparison of the controller scenarios against the synthetic tunnel.
+    Sil(SilArgs),
+    /// Build the firmware, replay one run in QEMU (STM32F405) and compare with the host replay.
+    QemuReplay(QemuReplayArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct QemuReplayArgs {
+    /// Dataset folder (or its manifest.toml).
+    #[arg(long)]
+    data: PathBuf,
+    /// The run: its file as written in the manifest (e.g. runs/roll_actuation_a20.csv).
+    #[arg(long)]
+    run: PathBuf,
+    /// Replay only the first N samples.
+    #[arg(long)]
+    samples: Option<usize>,
+    /// Folder for the firmware's input, output and defmt log.
+    #[arg(long)]
+    out: PathBuf,
+    /// QEMU time limit, s.
+    #[arg(long, default_value_t = 600)]
+    timeout_s: u64,
 }
 
 #[derive(Debug, clap::Args)]
@@ -140,6 +163,8 @@ fn main() -> ExitCode {
         Command::Codegen(args) => codegen(args),
         Command::Replay(args) => replay(args),
         Command::Evaluate(args) => evaluate(args),
+        Command::Sil(args) => sil(args),
+        Command::QemuReplay(args) => qemu_replay(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -288,6 +313,22 @@ fn replay(args: ReplayArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// `qemu-replay`: the firmware in QEMU against the host replay, one run.
+fn qemu_replay(args: QemuReplayArgs) -> anyhow::Result<()> {
+    let dataset = firmware_sim::dataset::load_dataset(&args.data)?;
+    let run = dataset
+        .runs
+        .iter()
+        .find(|run| run.meta.file == args.run)
+        .with_context(|| format!("no run {} in {}", args.run.display(), args.data.display()))?;
+    let timeout = std::time::Duration::from_secs(args.timeout_s);
+    let replay = host_tools::qemu::qemu_replay(run, args.samples, &args.out, timeout)?;
+    let summary = host_tools::qemu::summary(&replay);
+    std::fs::write(args.out.join("summary.txt"), &summary)?;
+    print!("{summary}");
+    Ok(())
+}
+
 /// `evaluate`: the paper's analysis on held-out data, as a report folder.
 fn evaluate(args: EvaluateArgs) -> anyhow::Result<()> {
     use host_tools::evaluate::{EvaluationConfig, Replayed, evaluate, evaluation_report, figures, with_balance_noise};
@@ -365,4 +406,99 @@ fn progress_bar(length: u64, message: &'static str) -> ProgressBar {
     );
     bar.set_message(message);
     bar
+}
+
+#[derive(Debug, clap::Args)]
+struct SilArgs {
+    /// Model folder or model.bin (default: the built-in tables).
+    #[arg(long)]
+    model: Option<PathBuf>,
+    /// Scenario file (TOML: alphas, duration, seed, effects, ...); without it, the paper's
+    /// campaign at 20 s per run.
+    #[arg(long)]
+    scenario: Option<PathBuf>,
+    /// Report folder to write (report.html, report.md, SVG plots, sil.json).
+    #[arg(long)]
+    report: PathBuf,
+    /// Master seed of the roll command and the noise (overrides the scenario's).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Duration of every run, s (overrides the scenario's).
+    #[arg(long = "duration-s")]
+    duration_s: Option<f64>,
+    /// Switch an effect on: NAME or NAME:key=value,... (repeatable).
+    #[arg(long = "effect", value_name = "EFFECT")]
+    effects: Vec<String>,
+    /// Choose the feedback and causality gains by a grid search at another seed first.
+    #[arg(long)]
+    tune: bool,
+    /// Seed of the gain search (default: the report's seed + 1).
+    #[arg(long = "tune-seed")]
+    tune_seed: Option<u64>,
+    /// Causality filter time constant T_F, s (overrides the model's).
+    #[arg(long = "causality-tau-s")]
+    causality_tau_s: Option<f64>,
+    /// Proportional feedback gain (overrides the model's).
+    #[arg(long)]
+    kp: Option<f64>,
+    /// Integral feedback gain, 1/s (overrides the model's).
+    #[arg(long)]
+    ki: Option<f64>,
+}
+
+/// `sil`: the controller scenarios in closed loop with the synthetic tunnel, as a report folder.
+fn sil(args: SilArgs) -> anyhow::Result<()> {
+    use firmware_sim::sil::{Gains, Mode, SilSettings, TuneGrid, run_scenario, tune};
+    let started = Instant::now();
+    let (mut scenario, mut described) = match &args.scenario {
+        Some(path) => (Scenario::from_file(path)?, format!("`{}`", path.display())),
+        None => (Scenario { duration_s: 20.0, ..Scenario::default() }, "the paper's campaign, 20 s per run".to_owned()),
+    };
+    if let Some(seed) = args.seed {
+        scenario.seed = seed;
+    }
+    if let Some(duration_s) = args.duration_s {
+        scenario.duration_s = duration_s;
+    }
+    for effect in &args.effects {
+        scenario.apply_effect_arg(effect)?;
+        described.push_str(&format!(", effect {effect}"));
+    }
+    let (model_set, source) = host_tools::model::load(args.model.as_deref())?;
+    let settings = SilSettings::default();
+    let mut tuning = None;
+    let mut gains = Gains::of(&model_set);
+    if args.tune {
+        let tune_seed = args.tune_seed.unwrap_or(scenario.seed.wrapping_add(1));
+        let tune_scenario = Scenario { seed: tune_seed, ..scenario.clone() };
+        let grid = TuneGrid::default();
+        let progress = progress_bar(grid.len() as u64, "gain search");
+        let points = tune(&tune_scenario, &model_set, &grid, &settings, &|| progress.inc(1))?;
+        progress.finish_and_clear();
+        if let Some(best) = points.first() {
+            gains = best.gains;
+        }
+        tuning = Some((tune_seed, points));
+    }
+    gains.causality_tau_s = args.causality_tau_s.unwrap_or(gains.causality_tau_s);
+    gains.feedback_kp = args.kp.unwrap_or(gains.feedback_kp);
+    gains.feedback_ki = args.ki.unwrap_or(gains.feedback_ki);
+    let set = gains.apply(&model_set)?;
+    let n_runs = scenario.alphas_deg.len() * Mode::ALL.len();
+    let progress = progress_bar(n_runs as u64, "closed-loop runs");
+    let results = run_scenario(&scenario, &set, &Mode::ALL, &settings, &|| progress.inc(1))?;
+    progress.set_message("writing the report");
+    let context = host_tools::sil::SilContext { model: source.to_string(), scenario: described, tuning };
+    host_tools::sil::write_sil_report(&args.report, &results, &context)
+        .with_context(|| format!("writing the report {}", args.report.display()))?;
+    progress.finish_and_clear();
+    println!("SIL, seed {}: RMS of C_l per scenario", results.seed);
+    println!("  {}", host_tools::sil::summary_header().join(" | "));
+    for row in host_tools::sil::summary_rows(&results) {
+        println!("  {}", row.join(" | "));
+    }
+    println!("{}", host_tools::sil::verdict(&results));
+    println!("report: {}", args.report.join("report.html").display());
+    eprintln!("SIL in {:.1} s", started.elapsed().as_secs_f64());
+    Ok(())
 }

@@ -16,3 +16,9 @@ mod fit;
 
 // Replay and evaluation: per-run estimates, report folders, missing kinds of run.
 mod evaluate;
+
+// The SIL harness: the stepped tunnel against simulate_run, closed-loop reductions.
+mod sil;
+
+// The firmware in QEMU (STM32F405) against the host replay: same outputs, instruction counts.
+mod firmware;

@@ -173,6 +173,25 @@ impl HoldSequence {
     pub fn n_holds(&self) -> usize {
         self.levels.len()
     }
+
+    /// A signal built from its holds: `levels[i]` from `switch_times_s[i]` (increasing) on.
+    #[must_use]
+    pub fn from_holds(switch_times_s: Vec<f64>, levels: Vec<f64>) -> Self {
+        let n_holds = switch_times_s.len().min(levels.len());
+        let (mut switch_times_s, mut levels) = (switch_times_s, levels);
+        switch_times_s.truncate(n_holds);
+        levels.truncate(n_holds);
+        Self { switch_times_s, levels }
+    }
+
+    /// Holds `level` from `t_s` on (later than every earlier switch); a level equal to the
+    /// current one adds no switch. This is how a closed loop logs its commands as it goes.
+    pub fn hold_from(&mut self, t_s: f64, level: f64) {
+        if self.levels.last().is_none_or(|&last| last.to_bits() != level.to_bits()) {
+            self.switch_times_s.push(t_s);
+            self.levels.push(level);
+        }
+    }
 }
 
 #[cfg(test)]

@@ -23,6 +23,7 @@ pub mod effects;
 pub mod excitation;
 mod model;
 pub mod params;
+mod stepping;
 pub mod taps;
 
 use rand::SeedableRng;
@@ -34,6 +35,7 @@ use effects::{Effects, FaultMode, PressureFault};
 use excitation::HoldSequence;
 use model::{Drive, Model, ModelConfig, State, idx};
 use params::{ActuatorParams, AeroParams, RigParams, SensorParams};
+pub use stepping::{Sample, TunnelSim};
 
 /// Standard gravity, m/s^2.
 const GRAVITY_MPS2: f64 = 9.80665;
@@ -89,7 +91,28 @@ pub struct RunSpec {
 /// Simulates one run and returns its recorded channels (with the logged commands).
 #[must_use]
 pub fn simulate_run(config: &TunnelConfig, spec: &RunSpec) -> Channels {
-    let model = Model::new(
+    let model = model_of(config, spec.alpha_deg);
+    let n_samples = (spec.duration_s * spec.sample_hz).round().max(0.0) as usize;
+    let inputs = Inputs { roll_cmd_deg: &spec.roll_cmd_deg, blowing_cmd: &spec.blowing_cmd, sample_hz: spec.sample_hz };
+    let mut run = RunState::new(&model, spec.alpha_deg, spec.sample_hz, spec.noise_seed, &config.aero, n_samples);
+    let mut channels = empty_channels(n_samples);
+    for sample_idx in 0..n_samples {
+        let t_s = sample_idx as f64 / spec.sample_hz;
+        let draws = NoiseDraws::next(&mut run.rng);
+        run.advance_processes(&model, &draws, spec.sample_hz);
+        let sample = run.record(&model, &inputs, t_s, &draws);
+        push_sample(&mut channels, &sample);
+        push_some(&mut channels.phi_cmd_deg, spec.roll_cmd_deg.value_at(t_s));
+        push_some(&mut channels.cmu_port_cmd, spec.blowing_cmd[0].value_at(t_s));
+        push_some(&mut channels.cmu_stbd_cmd, spec.blowing_cmd[1].value_at(t_s));
+        run.integrate_sample(&model, &inputs, t_s);
+    }
+    channels
+}
+
+/// The model of a tunnel configuration at one angle of attack.
+fn model_of(config: &TunnelConfig, alpha_deg: f64) -> Model {
+    Model::new(
         &ModelConfig {
             tunnel: &config.tunnel.0,
             wing: &config.wing,
@@ -99,19 +122,29 @@ pub fn simulate_run(config: &TunnelConfig, spec: &RunSpec) -> Channels {
             rig: &config.rig,
             effects: &config.effects,
         },
-        spec.alpha_deg,
-    );
-    let n_samples = (spec.duration_s * spec.sample_hz).round().max(0.0) as usize;
-    let mut run = RunState::new(&model, spec, &config.aero, n_samples);
-    let mut channels = empty_channels(n_samples);
-    for sample_idx in 0..n_samples {
-        let t_s = sample_idx as f64 / spec.sample_hz;
-        let draws = NoiseDraws::next(&mut run.rng);
-        run.advance_processes(&model, &draws, spec.sample_hz);
-        run.record(&model, spec, t_s, &draws, &mut channels);
-        run.integrate_sample(&model, spec, t_s);
+        alpha_deg,
+    )
+}
+
+/// The commanded inputs of a run as functions of time (exact, so that delays and substeps read
+/// them at any instant).
+#[derive(Debug, Clone, Copy)]
+struct Inputs<'a> {
+    roll_cmd_deg: &'a HoldSequence,
+    blowing_cmd: &'a [HoldSequence; 2],
+    sample_hz: f64,
+}
+
+/// Appends one sample's measured channels.
+fn push_sample(channels: &mut Channels, sample: &Sample) {
+    channels.t_s.push(sample.t_s);
+    channels.phi_deg.push(sample.phi_deg);
+    channels.cmu_port.push(sample.cmu[0]);
+    channels.cmu_stbd.push(sample.cmu[1]);
+    for (column, &value) in channels.cp.iter_mut().zip(&sample.cp) {
+        column.push(value);
     }
-    channels
+    channels.cl.push(sample.cl);
 }
 
 /// Random numbers of one sample, always drawn in the same order and number.
@@ -143,6 +176,7 @@ impl NoiseDraws {
 }
 
 /// Mutable state of a run being simulated.
+#[derive(Debug, Clone)]
 struct RunState {
     state: State,
     rng: ChaCha8Rng,
@@ -161,15 +195,22 @@ struct RunState {
 }
 
 impl RunState {
-    fn new(model: &Model, spec: &RunSpec, aero: &AeroParams, n_samples: usize) -> Self {
-        let alpha_scale = (spec.alpha_deg.to_radians().sin() / 20f64.to_radians().sin()).powi(2);
+    fn new(
+        model: &Model,
+        alpha_deg: f64,
+        sample_hz: f64,
+        noise_seed: u64,
+        aero: &AeroParams,
+        n_samples: usize,
+    ) -> Self {
+        let alpha_scale = (alpha_deg.to_radians().sin() / 20f64.to_radians().sin()).powi(2);
         let keep_history = model.effects().actuator_delay.is_some();
         Self {
             state: model.rest_state(),
-            rng: ChaCha8Rng::seed_from_u64(spec.noise_seed),
+            rng: ChaCha8Rng::seed_from_u64(noise_seed),
             buffet: [0.0; 2],
             buffet_std: aero.buffet_state_std * alpha_scale,
-            buffet_pole: (-std::f64::consts::TAU * aero.buffet_corner_hz / spec.sample_hz).exp(),
+            buffet_pole: (-std::f64::consts::TAU * aero.buffet_corner_hz / sample_hz).exp(),
             q_deviation: 0.0,
             drift_walk: 0.0,
             stuck_value: None,
@@ -192,15 +233,15 @@ impl RunState {
     }
 
     /// The drive at time `t_s` for a given (stage) state.
-    fn drive(&self, model: &Model, spec: &RunSpec, t_s: f64, stage: &State, q_deviation: f64) -> Drive {
+    fn drive(&self, model: &Model, inputs: &Inputs<'_>, t_s: f64, stage: &State, q_deviation: f64) -> Drive {
         let actuator = model.actuator();
-        let valve_cmd = std::array::from_fn(|side| spec.blowing_cmd[side].value_at(t_s - actuator.valve_delay_s));
+        let valve_cmd = std::array::from_fn(|side| inputs.blowing_cmd[side].value_at(t_s - actuator.valve_delay_s));
         let delayed_valve = match model.effects().actuator_delay {
-            Some(delay) => self.delayed_valve(model, spec, t_s - delay.delay_s),
+            Some(delay) => self.delayed_valve(model, inputs.sample_hz, t_s - delay.delay_s),
             None => [stage[idx::VALVE], stage[idx::VALVE + 1]],
         };
         Drive {
-            roll_cmd_rad: spec.roll_cmd_deg.value_at(t_s).to_radians(),
+            roll_cmd_rad: inputs.roll_cmd_deg.value_at(t_s).to_radians(),
             valve_cmd,
             delayed_valve,
             buffet: [self.buffet[0] * self.buffet_std, self.buffet[1] * self.buffet_std],
@@ -210,11 +251,11 @@ impl RunState {
 
     /// Valve output at an earlier time, linearly interpolated between substeps (a fractional
     /// delay); zero before the run started, the newest stored value beyond it.
-    fn delayed_valve(&self, model: &Model, spec: &RunSpec, t_s: f64) -> [f64; 2] {
+    fn delayed_valve(&self, model: &Model, sample_hz: f64, t_s: f64) -> [f64; 2] {
         if t_s <= 0.0 || self.valve_history.is_empty() {
             return self.valve_history.first().copied().unwrap_or([0.0; 2]);
         }
-        let position = t_s * spec.sample_hz * model.rig().substeps as f64;
+        let position = t_s * sample_hz * model.rig().substeps as f64;
         let below = position.floor() as usize;
         let last = self.valve_history.len() - 1;
         if below >= last {
@@ -226,42 +267,40 @@ impl RunState {
     }
 
     /// Integrates the state over one sample with RK4 substeps.
-    fn integrate_sample(&mut self, model: &Model, spec: &RunSpec, t_s: f64) {
+    fn integrate_sample(&mut self, model: &Model, inputs: &Inputs<'_>, t_s: f64) {
         let substeps = model.rig().substeps.max(1);
-        let step_s = 1.0 / (spec.sample_hz * substeps as f64);
+        let step_s = 1.0 / (inputs.sample_hz * substeps as f64);
         let q_deviation = self.q_deviation;
         for substep in 0..substeps {
             let t0 = t_s + substep as f64 * step_s;
             if model.effects().actuator_delay.is_some() {
                 self.valve_history.push([self.state[idx::VALVE], self.state[idx::VALVE + 1]]);
             }
-            let rate =
-                |time: f64, stage: &State| model.derivative(stage, &self.drive(model, spec, time, stage, q_deviation));
+            let rate = |time: f64, stage: &State| {
+                model.derivative(stage, &self.drive(model, inputs, time, stage, q_deviation))
+            };
             self.state = rk4_step(&self.state, t0, step_s, rate);
         }
     }
 
-    /// Records the channels of sample `sample_idx` at time `t_s`.
-    fn record(&mut self, model: &Model, spec: &RunSpec, t_s: f64, draws: &NoiseDraws, out: &mut Channels) {
-        let drive = self.drive(model, spec, t_s, &self.state, self.q_deviation);
+    /// The measured channels of the sample at time `t_s` (with the noise-free aerodynamic
+    /// moment beside them).
+    fn record(&mut self, model: &Model, inputs: &Inputs<'_>, t_s: f64, draws: &NoiseDraws) -> Sample {
+        let drive = self.drive(model, inputs, t_s, &self.state, self.q_deviation);
         let flow = model.flow(&self.state, &drive);
         let sensors = *model.sensors();
         let rel_noise = model.actuator().measurement_rel_noise;
-        out.t_s.push(t_s);
-        out.phi_deg.push(quantise(self.state[idx::PHI].to_degrees(), sensors.encoder_resolution_deg));
-        let cmu = |side: usize| (self.state[idx::VALVE + side] * (1.0 + rel_noise * draws.cmu[side])).max(0.0);
-        out.cmu_port.push(cmu(0));
-        out.cmu_stbd.push(cmu(1));
-        push_some(&mut out.phi_cmd_deg, spec.roll_cmd_deg.value_at(t_s));
-        push_some(&mut out.cmu_port_cmd, spec.blowing_cmd[0].value_at(t_s));
-        push_some(&mut out.cmu_stbd_cmd, spec.blowing_cmd[1].value_at(t_s));
-        for tap in 0..N_TAPS {
+        let phi_deg = quantise(self.state[idx::PHI].to_degrees(), sensors.encoder_resolution_deg);
+        let cmu =
+            std::array::from_fn(|side| (self.state[idx::VALVE + side] * (1.0 + rel_noise * draws.cmu[side])).max(0.0));
+        let mut cp = [0.0; N_TAPS];
+        for (tap, value_out) in cp.iter_mut().enumerate() {
             let clean = model.tap_reading(&self.state, tap) + sensors.cp_noise_std * draws.cp[tap];
             let value = self.apply_fault(model.effects().pressure_fault, tap, t_s, clean, draws);
-            out.cp[tap].push(quantise(value, sensors.cp_resolution));
+            *value_out = quantise(value, sensors.cp_resolution);
         }
         let cl = flow.cl_aero + self.balance_errors(model, t_s, &flow) + sensors.balance_noise_std_cl * draws.balance;
-        out.cl.push(quantise(cl, sensors.cl_resolution));
+        Sample { t_s, phi_deg, cmu, cp, cl: quantise(cl, sensors.cl_resolution), cl_aero: flow.cl_aero }
     }
 
     /// What the balance reads beyond the aerodynamic moment, C_l: the effects of the balance
