@@ -34,7 +34,7 @@ pub fn workspace_root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).parent().map_or_else(|| PathBuf::from("."), Path::to_path_buf)
 }
 
-/// Builds the firmware (release) and returns the ELF's path. It uses its own target folder
+/// Builds the firmware (the `firmware` profile: release with fat LTO) and returns the ELF's path. It uses its own target folder
 /// (`target/firmware`), so that it can run while another cargo holds the workspace's.
 pub fn build_firmware() -> anyhow::Result<PathBuf> {
     let root = workspace_root();
@@ -43,14 +43,14 @@ pub fn build_firmware() -> anyhow::Result<PathBuf> {
     let status = Command::new(cargo)
         .current_dir(&root)
         .args(["build", "-p", "firmware-sim", "--bin", "firmware", "--no-default-features", "--features", "target"])
-        .args(["--target", TARGET, "--release", "--target-dir"])
+        .args(["--target", TARGET, "--profile", "firmware", "--target-dir"])
         .arg(&target_dir)
         .status()
         .context("running cargo to build the firmware")?;
     if !status.success() {
         bail!("building the firmware failed ({status})");
     }
-    Ok(target_dir.join(TARGET).join("release").join("firmware"))
+    Ok(target_dir.join(TARGET).join("firmware").join("firmware"))
 }
 
 /// The first `n_samples` samples of `run` as an input file (all of them when `None`).
