@@ -66,6 +66,40 @@ pub struct Output {
     pub health: Health,
 }
 
+impl Output {
+    /// Names of [`Output::estimates`], in order.
+    pub const ESTIMATE_NAMES: [&'static str; 10] = [
+        "cl_egk",
+        "cl_pressure",
+        "cl_roll",
+        "cl_afc_port",
+        "cl_afc_stbd",
+        "cl_afc",
+        "cl_linear",
+        "coupling",
+        "cl",
+        "phi_dot_rad_s",
+    ];
+
+    /// Every estimate of the step, in the order of [`Output::ESTIMATE_NAMES`] (the order of
+    /// replay files and firmware output records).
+    #[must_use]
+    pub const fn estimates(&self) -> [f32; 10] {
+        [
+            self.cl_egk,
+            self.cl_pressure,
+            self.cl_roll,
+            self.cl_afc_port,
+            self.cl_afc_stbd,
+            self.cl_afc,
+            self.cl_linear,
+            self.coupling,
+            self.cl,
+            self.phi_dot_rad_s,
+        ]
+    }
+}
+
 /// Inputs after validation: finite and in range.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Held {
@@ -229,20 +263,6 @@ mod tests {
         Input { phi_deg, alpha_deg: 10.0, cmu_port, cmu_stbd: 0.0, cp }
     }
 
-    fn outputs(output: &Output) -> [f32; 9] {
-        [
-            output.cl_egk,
-            output.cl_pressure,
-            output.cl_roll,
-            output.cl_afc_port,
-            output.cl_afc_stbd,
-            output.cl_afc,
-            output.cl_linear,
-            output.coupling,
-            output.cl,
-        ]
-    }
-
     fn wild_value() -> impl Strategy<Value = f32> {
         prop_oneof![
             Just(f32::NAN),
@@ -275,15 +295,15 @@ mod tests {
             let mut battered = Estimator::new(&set);
             for input in &garbage {
                 let output = battered.step(input);
-                prop_assert!(outputs(&output).iter().all(|value| value.is_finite()), "{output:?}");
+                prop_assert!(output.estimates().iter().all(|value| value.is_finite()), "{output:?}");
             }
             let mut fresh = Estimator::new(&set);
             for step in 0..RECOVERY_STEPS {
                 let input = normal_input(step);
                 let (a, b) = (battered.step(&input), fresh.step(&input));
-                prop_assert!(outputs(&a).iter().all(|value| value.is_finite()));
+                prop_assert!(a.estimates().iter().all(|value| value.is_finite()));
                 if step + 1 == RECOVERY_STEPS {
-                    for (x, y) in outputs(&a).iter().zip(outputs(&b)) {
+                    for (x, y) in a.estimates().iter().zip(b.estimates()) {
                         prop_assert!((x - y).abs() < 1e-4, "{a:?}\nvs\n{b:?}");
                     }
                 }

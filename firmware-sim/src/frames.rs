@@ -130,36 +130,14 @@ pub struct OutputRecord {
     pub ticks_total: u32,
 }
 
-/// The output's `f32` fields in record order.
+/// The output's `f32` fields in record order ([`Output::estimates`]).
 #[must_use]
-pub fn output_fields(output: &Output) -> [f32; 10] {
-    [
-        output.cl_egk,
-        output.cl_pressure,
-        output.cl_roll,
-        output.cl_afc_port,
-        output.cl_afc_stbd,
-        output.cl_afc,
-        output.cl_linear,
-        output.coupling,
-        output.cl,
-        output.phi_dot_rad_s,
-    ]
+pub const fn output_fields(output: &Output) -> [f32; 10] {
+    output.estimates()
 }
 
 /// Names of [`output_fields`], in order.
-pub const OUTPUT_FIELD_NAMES: [&str; 10] = [
-    "cl_egk",
-    "cl_pressure",
-    "cl_roll",
-    "cl_afc_port",
-    "cl_afc_stbd",
-    "cl_afc",
-    "cl_linear",
-    "coupling",
-    "cl",
-    "phi_dot_rad_s",
-];
+pub const OUTPUT_FIELD_NAMES: [&str; 10] = Output::ESTIMATE_NAMES;
 
 /// One step's output record.
 #[must_use]

@@ -129,7 +129,15 @@ struct SimulateArgs {
     /// Dataset folder to write (replaced atomically if it exists).
     #[arg(long)]
     out: PathBuf,
-    /// Scenario file (TOML); keys it does not set keep the paper's values.
+    #[command(flatten)]
+    scenario: ScenarioArgs,
+}
+
+/// The scenario options shared by `simulate` and `sil`.
+#[derive(Debug, clap::Args)]
+struct ScenarioArgs {
+    /// Scenario file (TOML: alphas, duration, seed, physical parameters, effects); keys it does
+    /// not set keep the paper's values.
     #[arg(long)]
     scenario: Option<PathBuf>,
     /// Master seed (overrides the scenario's).
@@ -142,6 +150,29 @@ struct SimulateArgs {
     /// `--effect actuator_delay:delay_s=0.03`.
     #[arg(long = "effect", value_name = "EFFECT")]
     effects: Vec<String>,
+}
+
+impl ScenarioArgs {
+    /// The scenario file (or `default` without one) with the command line's overrides, and a
+    /// description of where it came from.
+    fn resolve(&self, default: Scenario, default_described: &str) -> anyhow::Result<(Scenario, String)> {
+        let (mut scenario, mut described) = match &self.scenario {
+            Some(path) => (Scenario::from_file(path)?, format!("`{}`", path.display())),
+            None => (default, default_described.to_owned()),
+        };
+        if let Some(seed) = self.seed {
+            scenario.seed = seed;
+        }
+        if let Some(duration_s) = self.duration_s {
+            scenario.duration_s = duration_s;
+        }
+        for effect in &self.effects {
+            scenario.apply_effect_arg(effect)?;
+            described.push_str(&format!(", effect {effect}"));
+        }
+        scenario.validate()?;
+        Ok((scenario, described))
+    }
 }
 
 #[derive(Debug, clap::Args)]
@@ -177,20 +208,7 @@ fn main() -> ExitCode {
 
 /// `simulate`: scenario -> synthetic tunnel -> dataset folder.
 fn simulate(args: SimulateArgs) -> anyhow::Result<()> {
-    let mut scenario = match &args.scenario {
-        Some(path) => Scenario::from_file(path)?,
-        None => Scenario::default(),
-    };
-    if let Some(seed) = args.seed {
-        scenario.seed = seed;
-    }
-    if let Some(duration_s) = args.duration_s {
-        scenario.duration_s = duration_s;
-    }
-    for effect in &args.effects {
-        scenario.apply_effect_arg(effect)?;
-    }
-    scenario.validate()?;
+    let (scenario, _) = args.scenario.resolve(Scenario::default(), "the paper's campaign")?;
     let started = Instant::now();
     let n_runs = scenario.alphas_deg.len() * scenario.kinds.len();
     let progress = progress_bar(n_runs as u64, "simulating runs");
@@ -413,22 +431,12 @@ struct SilArgs {
     /// Model folder or model.bin (default: the built-in tables).
     #[arg(long)]
     model: Option<PathBuf>,
-    /// Scenario file (TOML: alphas, duration, seed, effects, ...); without it, the paper's
-    /// campaign at 20 s per run.
-    #[arg(long)]
-    scenario: Option<PathBuf>,
     /// Report folder to write (report.html, report.md, SVG plots, sil.json).
     #[arg(long)]
     report: PathBuf,
-    /// Master seed of the roll command and the noise (overrides the scenario's).
-    #[arg(long)]
-    seed: Option<u64>,
-    /// Duration of every run, s (overrides the scenario's).
-    #[arg(long = "duration-s")]
-    duration_s: Option<f64>,
-    /// Switch an effect on: NAME or NAME:key=value,... (repeatable).
-    #[arg(long = "effect", value_name = "EFFECT")]
-    effects: Vec<String>,
+    /// The scenario; without a file, the paper's campaign at 20 s per run.
+    #[command(flatten)]
+    scenario: ScenarioArgs,
     /// Choose the feedback and causality gains by a grid search at another seed first.
     #[arg(long)]
     tune: bool,
@@ -450,20 +458,8 @@ struct SilArgs {
 fn sil(args: SilArgs) -> anyhow::Result<()> {
     use firmware_sim::sil::{Gains, Mode, SilSettings, TuneGrid, run_scenario, tune};
     let started = Instant::now();
-    let (mut scenario, mut described) = match &args.scenario {
-        Some(path) => (Scenario::from_file(path)?, format!("`{}`", path.display())),
-        None => (Scenario { duration_s: 20.0, ..Scenario::default() }, "the paper's campaign, 20 s per run".to_owned()),
-    };
-    if let Some(seed) = args.seed {
-        scenario.seed = seed;
-    }
-    if let Some(duration_s) = args.duration_s {
-        scenario.duration_s = duration_s;
-    }
-    for effect in &args.effects {
-        scenario.apply_effect_arg(effect)?;
-        described.push_str(&format!(", effect {effect}"));
-    }
+    let default = Scenario { duration_s: 20.0, ..Scenario::default() };
+    let (scenario, described) = args.scenario.resolve(default, "the paper's campaign, 20 s per run")?;
     let (model_set, source) = host_tools::model::load(args.model.as_deref())?;
     let settings = SilSettings::default();
     let mut tuning = None;

@@ -124,18 +124,7 @@ fn replay_csv(run: &Run, outputs: &[Output]) -> String {
             channels.cmu_stbd[k],
             channels.cl[k],
         ];
-        let estimates = [
-            output.cl_egk,
-            output.cl_pressure,
-            output.cl_roll,
-            output.cl_afc_port,
-            output.cl_afc_stbd,
-            output.cl_afc,
-            output.cl_linear,
-            output.coupling,
-            output.cl,
-            output.phi_dot_rad_s,
-        ];
+        let estimates = output.estimates();
         let cells: Vec<String> = recorded
             .into_iter()
             .map(number)
