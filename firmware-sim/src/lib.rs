@@ -5,6 +5,15 @@
 //! physical model of the rolling UCAS wing in the IIT Fejer tunnel that is deliberately richer
 //! than the estimator's model families. It writes datasets in the contract format of
 //! [`dataset`], which every tool reads.
+//!
+//! - [`tunnel`] (std): the physics, its effects and a stepping API for closed loops;
+//!   [`campaign`] (std): scenarios and the paper's campaign;
+//! - [`dataset`] (std): the on-disk format (`shared/spec/dataset-format.md`); [`atomic`] (std):
+//!   folders written completely or not at all;
+//! - [`sil`] (std): the estimator and controller in closed loop with the tunnel;
+//! - [`io`], [`frames`] (no_std): the firmware's I/O traits and fixed-rate loop, and the binary
+//!   sample records the QEMU replay exchanges through semihosting;
+//! - `src/bin/firmware.rs` (feature `target`): the STM32F405 firmware.
 #![cfg_attr(not(feature = "std"), no_std)]
 #![deny(missing_docs)]
 // The workspace forbids unsafe code; this package only denies it so that the firmware binary
