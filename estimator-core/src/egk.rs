@@ -89,7 +89,7 @@ pub fn roll_geometry(
     phi_rad: f32,
     phi_dot_rad_s: f32,
 ) -> RollGeometry {
-    let (sin_phi, cos_phi) = libm::sincosf(phi_rad);
+    let (sin_phi, cos_phi) = crate::trig::sin_cos(phi_rad);
     let sin_beta = (sin_alpha * sin_phi).clamp(-1.0, 1.0);
     let beta_rad = libm::asinf(sin_beta);
     let tan_cos = tan_alpha * cos_phi;

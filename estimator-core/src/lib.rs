@@ -60,6 +60,7 @@ pub mod prior;
 pub mod rate;
 pub mod sparse;
 pub mod time;
+pub mod trig;
 
 pub use coeffs::CoefficientSet;
 
