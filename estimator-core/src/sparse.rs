@@ -116,11 +116,15 @@ impl SparseModel {
             if term.monomial.gate_mask & !active != 0 {
                 continue;
             }
-            // Validated sets have no power above MAX_POWER; a larger one is clamped, not a panic.
-            let factor = |var_idx: usize| powers[var_idx][usize::from(term.monomial.powers[var_idx]).min(MAX_POWER)];
-            // A balanced product tree keeps the chain of dependent multiplications short.
-            let pairs = [factor(0) * factor(1), factor(2) * factor(3), factor(4) * factor(5)];
-            sum += term.coeff * (pairs[0] * pairs[1]) * pairs[2];
+            // Only the variables present in the term are multiplied in (most terms have one to
+            // three); validated sets have no power above MAX_POWER, a larger one is clamped.
+            let mut product = term.coeff;
+            for (table, &power) in powers.iter().zip(&term.monomial.powers) {
+                if power != 0 {
+                    product *= table[usize::from(power).min(MAX_POWER)];
+                }
+            }
+            sum += product;
         }
         sum
     }
@@ -134,8 +138,6 @@ impl SparseModel {
             .sum()
     }
 }
-
-const _: () = assert!(MAX_VARS == 6, "SparseModel::eval multiplies the six factors as a balanced tree");
 
 /// Anti-Dirac indicator `delta_bar(v) = 1 - delta(v)`: true when `|v|` exceeds the threshold.
 /// A NaN is not "active".
