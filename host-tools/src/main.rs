@@ -280,25 +280,13 @@ fn fit(args: FitArgs) -> anyhow::Result<()> {
 
 /// The held-out table of a fit on stdout.
 fn print_heldout(report: &host_tools::fit::pipeline::FitReport) {
+    use host_tools::fit::heldout::HeldoutAlpha;
     println!("held-out RMS of C_l (replay through the fitted core; {})", report.split);
-    println!(
-        "{:>9} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10} {:>13} {:>10}",
-        "alpha_deg", "eGK", "pressure", "fused", "plant", "linear", "coupled", "E_SINDy/E_lin", "noise"
-    );
-    let cell = |value: Option<f64>| value.map_or("-".to_owned(), |v| format!("{v:.3e}"));
+    let line = |cells: &[&str]| cells.iter().map(|cell| format!("{cell:>13}")).collect::<Vec<_>>().join(" ");
+    println!("{}", line(&HeldoutAlpha::COLUMNS));
     for row in &report.heldout.per_alpha {
-        println!(
-            "{:>9.1} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10} {:>13} {:>10}",
-            row.alpha_deg,
-            cell(row.egk_rms),
-            cell(row.pressure_rms),
-            cell(row.fused_rms),
-            cell(row.plant_rms),
-            cell(row.linear_rms),
-            cell(row.coupled_rms),
-            row.coupling_ratio.map_or("-".to_owned(), |r| format!("{r:.3}")),
-            cell(row.noise_rms)
-        );
+        let cells = row.cells();
+        println!("{}", line(&cells.each_ref().map(String::as_str)));
     }
 }
 

@@ -185,25 +185,15 @@ fn sparse_section(md: &mut String, lhs: &str, fit: &SparseFit, plot: &str) {
 }
 
 fn heldout_section(md: &mut String, report: &FitReport) {
+    use super::heldout::HeldoutAlpha;
     let _ = writeln!(
         md,
-        "## Held-out errors (replay through the fitted core)\n\n| alpha (deg) | eGK | pressure path | fused | plant | linear | coupled | E_SINDy/E_lin | balance noise |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- |"
+        "## Held-out errors (replay through the fitted core)\n\n| {} |\n|{}",
+        HeldoutAlpha::COLUMNS.join(" | "),
+        " --- |".repeat(HeldoutAlpha::COLUMNS.len())
     );
-    let cell = |value: Option<f64>| value.map_or("-".to_owned(), |v| format!("{v:.3e}"));
     for row in &report.heldout.per_alpha {
-        let _ = writeln!(
-            md,
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
-            row.alpha_deg,
-            cell(row.egk_rms),
-            cell(row.pressure_rms),
-            cell(row.fused_rms),
-            cell(row.plant_rms),
-            cell(row.linear_rms),
-            cell(row.coupled_rms),
-            row.coupling_ratio.map_or("-".to_owned(), |r| format!("{r:.3}")),
-            cell(row.noise_rms)
-        );
+        let _ = writeln!(md, "| {} |", row.cells().join(" | "));
     }
     let _ = writeln!(md);
 }

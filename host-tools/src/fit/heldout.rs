@@ -40,6 +40,29 @@ pub struct HeldoutAlpha {
     pub noise_rms: Option<f64>,
 }
 
+impl HeldoutAlpha {
+    /// Column names of [`HeldoutAlpha::cells`].
+    pub const COLUMNS: [&'static str; 9] =
+        ["alpha_deg", "eGK", "pressure path", "fused", "plant", "linear", "coupled", "E_SINDy/E_lin", "balance noise"];
+
+    /// The row as text cells (RMS in scientific notation, `-` where there were no runs).
+    #[must_use]
+    pub fn cells(&self) -> [String; 9] {
+        let cell = |value: Option<f64>| value.map_or("-".to_owned(), |v| format!("{v:.3e}"));
+        [
+            format!("{}", self.alpha_deg),
+            cell(self.egk_rms),
+            cell(self.pressure_rms),
+            cell(self.fused_rms),
+            cell(self.plant_rms),
+            cell(self.linear_rms),
+            cell(self.coupled_rms),
+            self.coupling_ratio.map_or("-".to_owned(), |ratio| format!("{ratio:.3}")),
+            cell(self.noise_rms),
+        ]
+    }
+}
+
 /// Held-out errors of a fitted set.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct HeldoutReport {
