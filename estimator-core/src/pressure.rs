@@ -29,6 +29,8 @@ pub struct PressureFilter {
     mode_weights: [f32; PRESSURE_RANK],
     /// `w . cp_mean + w0`.
     cl_constant: f32,
+    /// `gate_sigma * innovation_std`: the largest accepted innovation of each tap.
+    gate_limit: [f32; N_TAPS],
     /// Consecutive rejections (or, for an isolated channel, consecutive passes) per channel.
     streak: [u16; N_TAPS],
     isolated: u16,
@@ -49,6 +51,7 @@ impl PressureFilter {
     pub const fn new(model: &PressureModel) -> Self {
         let mut mode_weights = [0.0; PRESSURE_RANK];
         let mut cl_constant = model.cl_offset;
+        let mut gate_limit = [0.0; N_TAPS];
         let mut tap = 0;
         while tap < N_TAPS {
             let mut mode = 0;
@@ -57,9 +60,10 @@ impl PressureFilter {
                 mode += 1;
             }
             cl_constant += model.cl_weights[tap] * model.cp_mean[tap];
+            gate_limit[tap] = model.gate_sigma * model.innovation_std[tap];
             tap += 1;
         }
-        Self { modes: [0.0; PRESSURE_RANK], mode_weights, cl_constant, streak: [0; N_TAPS], isolated: 0 }
+        Self { modes: [0.0; PRESSURE_RANK], mode_weights, cl_constant, gate_limit, streak: [0; N_TAPS], isolated: 0 }
     }
 
     /// The reduced state.
@@ -88,7 +92,7 @@ impl PressureFilter {
             }
             innovation[tap] = cp[tap] - (dot(&model.c[tap], &predicted) + model.cp_mean[tap]);
             finite_mask |= bit;
-            if innovation[tap].abs() <= model.gate_sigma * model.innovation_std[tap] {
+            if innovation[tap].abs() <= self.gate_limit[tap] {
                 pass_mask |= bit;
             }
         }
