@@ -50,13 +50,15 @@ pub const DEFAULT_PROVENANCE: &str =
 /// The committed default model folder of this workspace.
 #[must_use]
 pub fn default_model() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/default")
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/default");
+    std::fs::canonicalize(&path).unwrap_or(path)
 }
 
 /// The generated file in this workspace.
 #[must_use]
 pub fn default_target() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../estimator-core/src/coeffs/generated.rs")
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../estimator-core/src/coeffs/generated.rs");
+    std::fs::canonicalize(&path).unwrap_or(path)
 }
 
 /// The workspace's rustfmt configuration.

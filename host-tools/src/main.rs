@@ -293,7 +293,18 @@ fn print_heldout(report: &host_tools::fit::pipeline::FitReport) {
 /// `codegen`: model -> const tables in estimator-core (or a check of them).
 fn codegen(args: CodegenArgs) -> anyhow::Result<()> {
     let (set, source) = host_tools::model::load(Some(&args.model))?;
-    let provenance = args.provenance.unwrap_or_else(|| format!("the fit in {source}"));
+    let is_default = |path: &std::path::Path| {
+        let canonical = |p: &std::path::Path| std::fs::canonicalize(p).ok();
+        let folder = if path.is_dir() { path.to_path_buf() } else { path.parent().unwrap_or(path).to_path_buf() };
+        canonical(&folder).is_some() && canonical(&folder) == canonical(&host_tools::codegen::default_model())
+    };
+    let provenance = args.provenance.unwrap_or_else(|| {
+        if is_default(&args.model) {
+            host_tools::codegen::DEFAULT_PROVENANCE.to_owned()
+        } else {
+            format!("the fit in {source}")
+        }
+    });
     let text = host_tools::codegen::render(&set, &provenance)?;
     let target = args.out.unwrap_or_else(host_tools::codegen::default_target);
     if args.check {
