@@ -96,43 +96,66 @@ fn allocate(set: &CoefficientSet, plants: &[Plant; 2], demand: f32, alpha_rad: f
     let params = &set.controller;
     let next = |side: usize, cmu: f32| set.plant[side].eval(&plants[side].variables(cmu, alpha_rad));
     let coasting = [next(0, 0.0), next(1, 0.0)];
+    let full = [next(0, params.cmu_max), next(1, params.cmu_max)];
+    let wanted = demand - coasting[0] - coasting[1];
     let mut best: Option<(usize, f32)> = None;
     for side in 0..2 {
-        let authority = next(side, params.cmu_max) - coasting[side];
-        let wanted = demand - coasting[0] - coasting[1];
+        let authority = full[side] - coasting[side];
         if authority * wanted > 0.0 && best.is_none_or(|(_, best_authority)| authority.abs() > best_authority.abs()) {
             best = Some((side, authority));
         }
     }
     let Some((side, _)) = best else { return ([0.0; 2], false) };
     let target = demand - coasting[1 - side];
-    let (cmu, saturated) = invert(params, |cmu| next(side, cmu), target);
+    let ends = Bracket { low: coasting[side] - target, high: full[side] - target };
+    let (cmu, saturated) = invert(params, |cmu| next(side, cmu) - target, ends);
     let mut cmu_pair = [0.0; 2];
     cmu_pair[side] = cmu;
     (cmu_pair, saturated)
 }
 
-/// Bisection for `f(cmu) = target` on `[0, Cmu_max]`, assuming `f` monotonic there; a target out
-/// of reach gives the nearer end of the range, reported as saturated.
-fn invert(params: &ControllerParams, f: impl Fn(f32) -> f32, target: f32) -> (f32, bool) {
-    let (mut low, mut high) = (0.0f32, params.cmu_max.max(0.0));
-    let (f_low, f_high) = (f(low) - target, f(high) - target);
-    if !(f_low.is_finite() && f_high.is_finite()) {
+/// The residual `f(cmu) - target` at both ends of `[0, Cmu_max]`.
+#[derive(Debug, Clone, Copy)]
+struct Bracket {
+    low: f32,
+    high: f32,
+}
+
+/// Largest residual moment the inversion accepts, far below any balance's noise.
+const INVERSION_TOLERANCE: f32 = 1e-9;
+
+/// Solves `residual(cmu) = 0` on `[0, Cmu_max]` by the Illinois variant of regula falsi
+/// (Dowell & Jarratt, BIT 11, 1971): superlinear on the smooth plant polynomial, bracketed
+/// like bisection, at most `inversion_iterations` evaluations. A target out of reach gives the
+/// nearer end of the range, reported as saturated.
+fn invert(params: &ControllerParams, residual: impl Fn(f32) -> f32, ends: Bracket) -> (f32, bool) {
+    let (mut a, mut b) = (0.0f32, params.cmu_max.max(0.0));
+    let (mut fa, mut fb) = (ends.low, ends.high);
+    if !(fa.is_finite() && fb.is_finite()) {
         return (0.0, true);
     }
-    if f_low * f_high > 0.0 {
-        return if f_low.abs() <= f_high.abs() { (low, true) } else { (high, true) };
+    if fa * fb > 0.0 {
+        return if fa.abs() <= fb.abs() { (a, true) } else { (b, true) };
     }
-    let rising = f_high > f_low;
     for _ in 0..params.inversion_iterations {
-        let middle = 0.5 * (low + high);
-        if (f(middle) - target > 0.0) == rising {
-            high = middle;
-        } else {
-            low = middle;
+        if fb.abs() <= INVERSION_TOLERANCE {
+            break;
         }
+        let secant = b - fb * (b - a) / (fb - fa);
+        // Fall back to bisection where the secant step is not usable.
+        let c = if secant.is_finite() && secant >= a.min(b) && secant <= a.max(b) { secant } else { 0.5 * (a + b) };
+        let fc = residual(c);
+        if !fc.is_finite() {
+            break;
+        }
+        if fc * fb < 0.0 {
+            (a, fa) = (b, fb);
+        } else {
+            fa *= 0.5;
+        }
+        (b, fb) = (c, fc);
     }
-    (0.5 * (low + high), false)
+    (b, false)
 }
 
 #[cfg(test)]
