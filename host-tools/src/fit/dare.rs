@@ -213,28 +213,8 @@ fn symmetrised(matrix: &DMatrix<f64>) -> DMatrix<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fit::test_noise::Noise;
     use nalgebra::Schur;
-
-    /// A small deterministic generator (xorshift64) with Box-Muller normals.
-    struct Noise(u64);
-
-    impl Noise {
-        fn uniform(&mut self) -> f64 {
-            self.0 ^= self.0 << 13;
-            self.0 ^= self.0 >> 7;
-            self.0 ^= self.0 << 17;
-            (self.0 >> 11) as f64 / (1u64 << 53) as f64
-        }
-
-        fn normal(&mut self) -> f64 {
-            let (u1, u2) = (self.uniform().max(1e-300), self.uniform());
-            (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-        }
-
-        fn matrix(&mut self, rows: usize, cols: usize) -> DMatrix<f64> {
-            DMatrix::from_fn(rows, cols, |_, _| self.normal())
-        }
-    }
 
     fn spectral_radius(matrix: &DMatrix<f64>) -> f64 {
         let schur = Schur::try_new(matrix.clone(), 1e-14, 10_000).unwrap();

@@ -13,5 +13,7 @@ pub mod pressure;
 pub mod signals;
 pub mod sparse_fit;
 pub mod split;
+#[cfg(test)]
+mod test_noise;
 
 pub use error::FitError;

@@ -1153,6 +1153,7 @@ mod tests {
 
     use super::*;
     use crate::fit::signals::differentiate;
+    use crate::fit::test_noise::Noise;
 
     /// Sample step of the synthetic data, s (the paper's 1 kHz).
     const DT_S: f64 = 1e-3;
@@ -1162,23 +1163,6 @@ mod tests {
     const RUN_SAMPLES: usize = 20_000;
     /// Order of the true pressure dynamics.
     const TRUE_ORDER: usize = 4;
-
-    /// A small deterministic generator (xorshift64) with Box-Muller normals.
-    struct Noise(u64);
-
-    impl Noise {
-        fn uniform(&mut self) -> f64 {
-            self.0 ^= self.0 << 13;
-            self.0 ^= self.0 >> 7;
-            self.0 ^= self.0 << 17;
-            (self.0 >> 11) as f64 / (1u64 << 53) as f64
-        }
-
-        fn normal(&mut self) -> f64 {
-            let (u1, u2) = (self.uniform().max(1e-300), self.uniform());
-            (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-        }
-    }
 
     /// The known linear system: two damped oscillators driven by the five inputs, seen by the
     /// 12 taps; `C_l` is a linear map of the noise-free taps.
