@@ -32,28 +32,39 @@ pub const REPLAY_MARKER: &str = "replay.toml";
 
 /// The columns of a replay CSV: the recorded inputs the estimate depends on, the balance, every
 /// stage's output and the health flags.
-pub const REPLAY_COLUMNS: [&str; 20] = [
-    "t_s",
-    "phi_deg",
-    "alpha_deg",
-    "cmu_port",
-    "cmu_stbd",
-    "cl",
-    "cl_egk",
-    "cl_pressure",
-    "cl_roll",
-    "cl_afc_port",
-    "cl_afc_stbd",
-    "cl_afc",
-    "cl_linear",
-    "coupling",
-    "cl_est",
-    "phi_dot_rad_s",
-    "health_flags",
-    "cp_missing",
-    "cp_rejected",
-    "cp_isolated",
-];
+pub const REPLAY_COLUMNS: [&str; 20] = replay_columns();
+
+/// The recorded columns a replay file repeats.
+const RECORDED_COLUMNS: [&str; 6] = ["t_s", "phi_deg", "alpha_deg", "cmu_port", "cmu_stbd", "cl"];
+
+/// The health columns.
+const HEALTH_COLUMNS: [&str; 4] = ["health_flags", "cp_missing", "cp_rejected", "cp_isolated"];
+
+/// Recorded columns, then [`Output::ESTIMATE_NAMES`] (the estimate `cl` renamed `cl_est` so it
+/// does not clash with the balance's `cl`), then the health columns.
+const fn replay_columns() -> [&'static str; 20] {
+    let mut columns = [""; 20];
+    let mut idx = 0;
+    while idx < RECORDED_COLUMNS.len() {
+        columns[idx] = RECORDED_COLUMNS[idx];
+        idx += 1;
+    }
+    let mut estimate = 0;
+    while estimate < Output::ESTIMATE_NAMES.len() {
+        let name = Output::ESTIMATE_NAMES[estimate];
+        columns[idx] =
+            if name.len() == 2 && name.as_bytes()[0] == b'c' && name.as_bytes()[1] == b'l' { "cl_est" } else { name };
+        idx += 1;
+        estimate += 1;
+    }
+    let mut health = 0;
+    while health < HEALTH_COLUMNS.len() {
+        columns[idx] = HEALTH_COLUMNS[health];
+        idx += 1;
+        health += 1;
+    }
+    columns
+}
 
 /// Why a replay could not be written.
 #[derive(Debug, thiserror::Error)]

@@ -27,6 +27,10 @@ fn replay_writes_every_stage_for_every_sample() {
     let text = std::fs::read_to_string(out.join("runs/roll_a20.csv")).expect("per-run csv");
     let mut lines = text.lines();
     assert_eq!(lines.next(), Some(REPLAY_COLUMNS.join(",").as_str()));
+    assert_eq!(
+        REPLAY_COLUMNS[5..16].join(","),
+        "cl,cl_egk,cl_pressure,cl_roll,cl_afc_port,cl_afc_stbd,cl_afc,cl_linear,coupling,cl_est,phi_dot_rad_s"
+    );
     let rows: Vec<&str> = lines.collect();
     assert_eq!(rows.len(), 12_000);
     let last: Vec<&str> = rows[rows.len() - 1].split(',').collect();
