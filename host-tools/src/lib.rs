@@ -17,6 +17,7 @@
 
 pub mod analysis;
 pub mod codegen;
+pub mod diagnose;
 pub mod evaluate;
 pub mod fit;
 pub mod model;
@@ -26,3 +27,4 @@ pub mod replay;
 pub mod report;
 pub mod sil;
 pub mod sindy;
+pub mod validate;

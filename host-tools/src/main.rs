@@ -39,6 +39,46 @@ enum Command {
     Sil(SilArgs),
     /// Build the firmware, replay one run in QEMU (STM32F405) and compare with the host replay.
     QemuReplay(QemuReplayArgs),
+    /// Sim-to-real gap diagnosis: where the gap lies, which effect causes it, how far it shrinks.
+    Diagnose(DiagnoseArgs),
+    /// Blind campaign: seeded cases with known effects, diagnosed without the answer, scored.
+    ValidateDiagnosis(ValidateArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct ValidateArgs {
+    /// Number of cases (they cycle through no effect, every vocabulary effect and two outside it).
+    #[arg(long, default_value_t = 140)]
+    cases: usize,
+    /// Master seed of the campaign.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Report folder (report.md, report.html, validation.json).
+    #[arg(long)]
+    report: PathBuf,
+    /// Duration of every run of a case, s.
+    #[arg(long = "duration-s", default_value_t = 30.0)]
+    duration_s: f64,
+    /// Only these classes (comma-separated: none, effect names).
+    #[arg(long, value_delimiter = ',')]
+    classes: Vec<String>,
+}
+
+#[derive(Debug, clap::Args)]
+struct DiagnoseArgs {
+    /// The recorded ("real") dataset folder (or its manifest.toml).
+    #[arg(long)]
+    real: PathBuf,
+    /// The sim: a model folder or model.bin (default: nominal models fitted on the training part
+    /// of the data itself).
+    #[arg(long)]
+    model: Option<PathBuf>,
+    /// Report folder to write (diagnosis.json, report.md, report.html, SVG plots).
+    #[arg(long)]
+    report: PathBuf,
+    /// Share of every run, at its end, that is held out.
+    #[arg(long = "holdout-fraction", default_value_t = host_tools::fit::split::DEFAULT_HOLDOUT_FRACTION)]
+    holdout_fraction: f64,
 }
 
 #[derive(Debug, clap::Args)]
@@ -196,6 +236,8 @@ fn main() -> ExitCode {
         Command::Evaluate(args) => evaluate(args),
         Command::Sil(args) => sil(args),
         Command::QemuReplay(args) => qemu_replay(args),
+        Command::Diagnose(args) => diagnose(args),
+        Command::ValidateDiagnosis(args) => validate_diagnosis(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -204,6 +246,67 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// `diagnose`: dataset (+ model) -> report folder with diagnosis.json.
+fn diagnose(args: DiagnoseArgs) -> anyhow::Result<()> {
+    use host_tools::diagnose::{DiagnoseConfig, diagnose, report};
+    let started = Instant::now();
+    let dataset = firmware_sim::dataset::load_dataset(&args.real)?;
+    let model = match &args.model {
+        Some(path) => {
+            let (set, source) = host_tools::model::load(Some(path))?;
+            Some((set, source.to_string()))
+        }
+        None => None,
+    };
+    let config = DiagnoseConfig { split: host_tools::fit::split::Split { holdout_fraction: args.holdout_fraction } };
+    let spinner = spinner("diagnosing".into());
+    let (diagnosis, evidence) =
+        diagnose(&dataset, model.as_ref().map(|(set, name)| (set, name.clone())), &config, &|stage| spinner.set_message(format!("diagnosing: {stage}")))?;
+    spinner.set_message("diagnosing: writing the report");
+    let report = report::build(&diagnosis, &evidence, &args.real.display().to_string());
+    let json = serde_json::to_value(&diagnosis)?;
+    host_tools::report::write_report(&args.report, &report, "diagnosis.json", &json)
+        .with_context(|| format!("writing the report {}", args.report.display()))?;
+    spinner.finish_and_clear();
+    println!("verdict: {}", diagnosis.verdict.as_str());
+    for effect in &diagnosis.effects {
+        println!(
+            "  {:<18} block {:<12} held-out gap {:.3e} -> {:.3e} (shrink {:.2})",
+            effect.name, effect.block, effect.heldout_rms_before, effect.heldout_rms_after, effect.shrink
+        );
+    }
+    if let Some(unexplained) = &diagnosis.unexplained {
+        println!("  {}", unexplained.description);
+    }
+    println!("diagnosis took {:.1} s; report: {}", started.elapsed().as_secs_f64(), args.report.join("report.html").display());
+    Ok(())
+}
+
+/// `validate-diagnosis`: the blind campaign -> report folder with validation.json.
+fn validate_diagnosis(args: ValidateArgs) -> anyhow::Result<()> {
+    use host_tools::validate::{CampaignConfig, run_campaign, score};
+    let started = Instant::now();
+    let config = CampaignConfig { cases: args.cases, seed: args.seed, duration_s: args.duration_s, classes: args.classes, ..CampaignConfig::default() };
+    let progress = progress_bar(args.cases as u64, "diagnosing blind cases");
+    let records = run_campaign(&config, &|| progress.inc(1));
+    progress.finish_and_clear();
+    let summary = score::summarise(&records);
+    let described = format!(
+        "{} cases, master seed {}, runs of {} s at one angle of attack each (roll, actuation, roll+actuation); took {:.0} s.",
+        records.len(), args.seed, args.duration_s, started.elapsed().as_secs_f64()
+    );
+    let report = score::report(&records, &summary, &described);
+    let json = serde_json::json!({ "config": format!("{config:?}"), "summary": summary, "cases": records });
+    host_tools::report::write_report(&args.report, &report, "validation.json", &json)
+        .with_context(|| format!("writing the report {}", args.report.display()))?;
+    print!("{}", report.sections[0].tables[0].rows.iter().map(|row| format!("{:<48} {:>8} {:>10}\n", row[0], row[1], row[2])).collect::<String>());
+    for (class, cells) in &summary.accuracy_by_ratio {
+        println!("{class:<18} {}", cells.iter().map(|(r, t)| format!("{r:>3}/{t:<3}")).collect::<Vec<_>>().join(" "));
+    }
+    println!("{described}\nreport: {}", args.report.join("report.html").display());
+    Ok(())
 }
 
 /// `simulate`: scenario -> synthetic tunnel -> dataset folder.

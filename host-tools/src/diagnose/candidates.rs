@@ -1,0 +1,349 @@
+//! The candidate effects of the balance stream: each a physical addition to the sim with a few
+//! parameters, written as regressors of the balance residual (gap-diagnosis.md section 4.2,
+//! groups G0-G9), with a grid over its nonlinear parameters (delays, time constants,
+//! frequencies), profiled by least squares.
+//!
+//! The regressors are built from the recorded inputs and the sim's own blocks, never from the
+//! synthetic tunnel's code: the plant is re-run by estimator-core on a delayed or lagged Cmu, the
+//! vortex lag filters the eGK moment, the structural mode filters the sim's load.
+
+use estimator_core::CoefficientSet;
+use serde::Serialize;
+
+use super::streams::RunStreams;
+
+/// The block of the sim an effect belongs to (shared/spec/diagnosis.md).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Block {
+    /// The disturbance model (eGK, pressure path).
+    Disturbance,
+    /// The plant model of the blowing.
+    Plant,
+    /// The coupling operator.
+    Coupling,
+    /// The pressure sensors.
+    Sensor,
+    /// The balance.
+    Balance,
+}
+
+impl Block {
+    /// The name used in reports and JSON.
+    #[must_use]
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::Disturbance => "disturbance",
+            Self::Plant => "plant",
+            Self::Coupling => "coupling",
+            Self::Sensor => "sensor",
+            Self::Balance => "balance",
+        }
+    }
+}
+
+/// A candidate effect of the balance stream.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Candidate {
+    /// `actuator_delay`: the plant driven by `Cmu(t - d)`.
+    ActuatorDelay,
+    /// `actuator_lag`: the plant driven by a first-order lag of Cmu.
+    ActuatorLag,
+    /// `inertial_tare`: `-I phi_ddot / (q S b)` left in the balance.
+    InertialTare,
+    /// `gravity_tare`: `m g d (sin(phi + phase) - sin(phase)) / (q S b)`.
+    GravityTare,
+    /// `roll_damping`: `C_l,p p_hat`.
+    RollDamping,
+    /// `vortex_lag`: a share of the eGK moment through a slower first-order state.
+    VortexLag,
+    /// `coupling`: bilinear disturbance-actuation interaction terms.
+    Coupling,
+    /// `balance_resonance`: a lightly damped mode excited by the load and the motion.
+    BalanceResonance,
+    /// `bias_drift`: a slow polynomial drift of the zero, per run.
+    BiasDrift,
+    /// Recalibration of the existing blocks' gains (group G0): competes with every new effect.
+    Recalibration,
+}
+
+impl Candidate {
+    /// Every balance candidate.
+    pub const ALL: [Self; 10] = [
+        Self::ActuatorDelay,
+        Self::ActuatorLag,
+        Self::InertialTare,
+        Self::GravityTare,
+        Self::RollDamping,
+        Self::VortexLag,
+        Self::Coupling,
+        Self::BalanceResonance,
+        Self::BiasDrift,
+        Self::Recalibration,
+    ];
+
+    /// The effect's name (the vocabulary of shared/spec/diagnosis.md; `recalibration` for G0).
+    #[must_use]
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::ActuatorDelay => "actuator_delay",
+            Self::ActuatorLag => "actuator_lag",
+            Self::InertialTare => "inertial_tare",
+            Self::GravityTare => "gravity_tare",
+            Self::RollDamping => "roll_damping",
+            Self::VortexLag => "vortex_lag",
+            Self::Coupling => "coupling",
+            Self::BalanceResonance => "balance_resonance",
+            Self::BiasDrift => "bias_drift",
+            Self::Recalibration => "recalibration",
+        }
+    }
+
+    /// The block the effect belongs to.
+    #[must_use]
+    pub const fn block(self) -> Block {
+        match self {
+            Self::ActuatorDelay | Self::ActuatorLag => Block::Plant,
+            Self::InertialTare | Self::GravityTare | Self::BalanceResonance | Self::BiasDrift => Block::Balance,
+            Self::RollDamping | Self::VortexLag | Self::Recalibration => Block::Disturbance,
+            Self::Coupling => Block::Coupling,
+        }
+    }
+
+    /// The experiment that separates this effect from its usual confusers
+    /// (gap-diagnosis.md section 2.11, "separator").
+    #[must_use]
+    pub const fn separating_experiment(self) -> &'static str {
+        match self {
+            Self::ActuatorDelay | Self::ActuatorLag => {
+                "a bench step test of the valve and runs at a second free-stream speed (the pneumatic part is fixed in seconds, the aerodynamic part scales with c/U)"
+            }
+            Self::InertialTare => "wind-off runs with the same roll motion (the inertial reaction stays, the aerodynamics vanish)",
+            Self::GravityTare => "wind-off runs at held roll angles (the weight moment stays) or a second free-stream speed",
+            Self::RollDamping | Self::VortexLag => {
+                "forced roll at several reduced frequencies and a second free-stream speed (aerodynamic lags scale with c/U, rig lags do not)"
+            }
+            Self::Coupling => "roll+actuation runs with the blowing scheduled independently of the roll phase, at two roll amplitudes",
+            Self::BalanceResonance => "a wind-off tap test of balance and sting",
+            Self::BiasDrift => "wind-off zero readings before and after each run",
+            Self::Recalibration => "runs at new angles of attack and amplitudes inside the fitted range",
+        }
+    }
+
+    /// Names of the nonlinear parameters profiled on a grid, with the grid.
+    #[must_use]
+    pub fn grid(self, sample_hz: f64) -> Vec<Vec<(&'static str, f64)>> {
+        let dt_s = 1.0 / sample_hz;
+        match self {
+            Self::ActuatorDelay => log_grid(0.5 * dt_s, 0.25, 40).into_iter().map(|d| vec![("delay_s", d)]).collect(),
+            Self::ActuatorLag => log_grid(dt_s, 0.5, 36).into_iter().map(|tau| vec![("tau_s", tau)]).collect(),
+            Self::VortexLag => log_grid(0.03, 5.0, 30).into_iter().map(|tau| vec![("tau_s", tau)]).collect(),
+            Self::BalanceResonance => {
+                let top_hz = (0.35 * sample_hz).min(250.0);
+                let mut grid = Vec::new();
+                for freq in log_grid(2.0, top_hz, 60) {
+                    for zeta in [0.01, 0.03, 0.1, 0.3] {
+                        grid.push(vec![("freq_hz", freq), ("zeta", zeta)]);
+                    }
+                }
+                grid
+            }
+            _ => vec![Vec::new()],
+        }
+    }
+
+    /// Number of regression columns per grid point (for the complexity penalty).
+    #[must_use]
+    pub fn n_columns(self, n_runs: usize) -> usize {
+        match self {
+            Self::ActuatorDelay | Self::ActuatorLag | Self::InertialTare | Self::RollDamping | Self::VortexLag => 1,
+            Self::GravityTare | Self::BalanceResonance | Self::Recalibration => 2,
+            Self::Coupling => 4,
+            Self::BiasDrift => 2 * n_runs,
+        }
+    }
+}
+
+/// `n` points spaced logarithmically from `low` to `high`.
+#[must_use]
+pub fn log_grid(low: f64, high: f64, n: usize) -> Vec<f64> {
+    if n < 2 {
+        return vec![low];
+    }
+    let ratio = (high / low).ln() / (n - 1) as f64;
+    (0..n).map(|idx| low * (ratio * idx as f64).exp()).collect()
+}
+
+/// What the regressors need besides the run itself.
+#[derive(Debug, Clone, Copy)]
+pub struct Context<'a> {
+    /// The sim's coefficient set (the plant is re-run on modified Cmu).
+    pub set: &'a CoefficientSet,
+    /// `q S b`, N m per unit C_l.
+    pub moment_scale_nm: f64,
+    /// `b / (2 U)`, s.
+    pub half_span_time_s: f64,
+    /// Largest recorded Cmu of the dataset (scales the coupling terms).
+    pub cmu_ref: f64,
+    /// Number of runs (per-run columns).
+    pub n_runs: usize,
+}
+
+/// The regression columns of `candidate` at grid point `hyper` for run number `run_idx`; every
+/// column has the run's length. Columns are zero where the effect cannot act (e.g. no blowing).
+#[must_use]
+pub fn columns(
+    candidate: Candidate,
+    hyper: &[(&'static str, f64)],
+    run: &RunStreams,
+    run_idx: usize,
+    context: &Context<'_>,
+) -> Vec<Vec<f64>> {
+    let n = run.len();
+    let dt_s = 1.0 / run.sample_hz;
+    let value = |key: &str| hyper.iter().find(|(name, _)| *name == key).map_or(0.0, |(_, v)| *v);
+    match candidate {
+        Candidate::ActuatorDelay => {
+            if !run.blows() {
+                return vec![vec![0.0; n]];
+            }
+            let delay_samples = value("delay_s") / dt_s;
+            let delayed = run.cmu.clone().map(|cmu| fractional_delay(&cmu, delay_samples));
+            vec![difference(&run.plant_response(context.set, &delayed), &run.cl_afc())]
+        }
+        Candidate::ActuatorLag => {
+            if !run.blows() {
+                return vec![vec![0.0; n]];
+            }
+            let lagged = run.cmu.clone().map(|cmu| first_order_lag(&cmu, value("tau_s"), dt_s));
+            vec![difference(&run.plant_response(context.set, &lagged), &run.cl_afc())]
+        }
+        Candidate::InertialTare => vec![run.phi_ddot_rad_s2.clone()],
+        Candidate::GravityTare => vec![
+            run.phi_rad.iter().map(|phi| phi.sin()).collect(),
+            run.phi_rad.iter().map(|phi| phi.cos() - 1.0).collect(),
+        ],
+        Candidate::RollDamping => {
+            vec![run.phi_dot_rad_s.iter().map(|rate| rate * context.half_span_time_s).collect()]
+        }
+        Candidate::VortexLag => {
+            vec![difference(&first_order_lag(&run.cl_egk, value("tau_s"), dt_s), &run.cl_egk)]
+        }
+        Candidate::Coupling => {
+            let cmu_ref = context.cmu_ref.max(f64::MIN_POSITIVE);
+            let afc = run.cl_afc();
+            let differential: Vec<f64> = (0..n).map(|idx| (run.cmu[0][idx] - run.cmu[1][idx]) / cmu_ref).collect();
+            let total: Vec<f64> = (0..n).map(|idx| (run.cmu[0][idx] + run.cmu[1][idx]) / cmu_ref).collect();
+            vec![
+                (0..n).map(|idx| run.cl_egk[idx] * differential[idx]).collect(),
+                (0..n).map(|idx| run.cl_egk[idx] * total[idx]).collect(),
+                (0..n).map(|idx| afc[idx] * run.phi_rad[idx]).collect(),
+                (0..n).map(|idx| afc[idx] * run.phi_rad[idx].abs()).collect(),
+            ]
+        }
+        Candidate::BalanceResonance => {
+            let (freq_hz, zeta) = (value("freq_hz"), value("zeta"));
+            let load = run.cl_sim();
+            let inertial: Vec<f64> = run.phi_ddot_rad_s2.iter().map(|a| a / context.moment_scale_nm).collect();
+            vec![
+                difference(&resonator(&load, freq_hz, zeta, dt_s), &load),
+                difference(&resonator(&inertial, freq_hz, zeta, dt_s), &inertial),
+            ]
+        }
+        Candidate::BiasDrift => {
+            let duration = run.t_s.last().copied().unwrap_or(1.0).max(f64::MIN_POSITIVE);
+            let mut out = vec![vec![0.0; n]; 2 * context.n_runs];
+            for (idx, t) in run.t_s.iter().enumerate() {
+                let x = t / duration;
+                out[2 * run_idx][idx] = x;
+                out[2 * run_idx + 1][idx] = x * x;
+            }
+            out
+        }
+        Candidate::Recalibration => vec![run.cl_egk.clone(), run.cl_afc()],
+    }
+}
+
+fn difference(a: &[f64], b: &[f64]) -> Vec<f64> {
+    a.iter().zip(b).map(|(x, y)| x - y).collect()
+}
+
+/// `x(t - d)` for a delay of `d` samples (fractional: linear interpolation between samples;
+/// the first sample is held before the start).
+#[must_use]
+pub fn fractional_delay(values: &[f64], delay_samples: f64) -> Vec<f64> {
+    let whole = delay_samples.floor();
+    let frac = delay_samples - whole;
+    let whole = whole as usize;
+    let first = values.first().copied().unwrap_or(0.0);
+    let at = |idx: isize| if idx < 0 { first } else { values[idx as usize] };
+    (0..values.len())
+        .map(|idx| {
+            let base = idx as isize - whole as isize;
+            (1.0 - frac) * at(base) + frac * at(base - 1)
+        })
+        .collect()
+}
+
+/// First-order lag `tau y' + y = u`, discretised exactly for an input held over each step,
+/// started at the first input (steady state).
+#[must_use]
+pub fn first_order_lag(values: &[f64], tau_s: f64, dt_s: f64) -> Vec<f64> {
+    let pole = (-dt_s / tau_s.max(1e-12)).exp();
+    let mut state = values.first().copied().unwrap_or(0.0);
+    values
+        .iter()
+        .map(|&u| {
+            let out = state;
+            state = pole * state + (1.0 - pole) * u;
+            out
+        })
+        .collect()
+}
+
+/// A unit-gain second-order resonator `w^2 / (s^2 + 2 zeta w s + w^2)` (bilinear transform with
+/// the natural frequency pre-warped), started at rest at the first input.
+#[must_use]
+pub fn resonator(values: &[f64], freq_hz: f64, zeta: f64, dt_s: f64) -> Vec<f64> {
+    let omega = 2.0 / dt_s * (std::f64::consts::PI * freq_hz * dt_s).tan();
+    let k = 2.0 / dt_s;
+    let (w2, two_zw) = (omega * omega, 2.0 * zeta * omega);
+    let a0 = k * k + two_zw * k + w2;
+    let b = [w2 / a0, 2.0 * w2 / a0, w2 / a0];
+    let a1 = (2.0 * w2 - 2.0 * k * k) / a0;
+    let a2 = (k * k - two_zw * k + w2) / a0;
+    let first = values.first().copied().unwrap_or(0.0);
+    let (mut x1, mut x2, mut y1, mut y2) = (first, first, first, first);
+    values
+        .iter()
+        .map(|&x| {
+            let y = b[0] * x + b[1] * x1 + b[2] * x2 - a1 * y1 - a2 * y2;
+            (x2, x1, y2, y1) = (x1, x, y1, y);
+            y
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fractional_delay_interpolates() {
+        let ramp: Vec<f64> = (0..10).map(f64::from).collect();
+        let delayed = fractional_delay(&ramp, 2.5);
+        assert!((delayed[6] - 3.5).abs() < 1e-12);
+        assert_eq!(delayed[0], 0.0);
+    }
+
+    #[test]
+    fn lag_and_resonator_have_unit_dc_gain() {
+        let step = vec![1.0; 20_000];
+        let lagged = first_order_lag(&[vec![0.0], step.clone()].concat(), 0.05, 1e-3);
+        assert!((lagged.last().unwrap() - 1.0).abs() < 1e-9);
+        let rung = resonator(&[vec![0.0], step].concat(), 25.0, 0.05, 1e-3);
+        assert!((rung.last().unwrap() - 1.0).abs() < 1e-6);
+        let peak = rung.iter().copied().fold(0.0, f64::max);
+        assert!(peak > 1.7, "lightly damped step overshoots: {peak}");
+    }
+}

@@ -1,0 +1,382 @@
+//! Sim-to-real gap diagnosis (shared/spec/diagnosis.md): where the recording departs from the
+//! sim, which unmodelled effect causes it, and how far the gap shrinks on held-out data once
+//! that effect is added.
+//!
+//! The sim is a fitted coefficient set driven by the recorded inputs alone
+//! ([`streams`]). Two residual streams are examined: the balance (roll moment) and the
+//! pressure channels' Kalman innovations. Every effect of the vocabulary is a candidate with
+//! physical parameters ([`candidates`], [`sensor`]), profiled over its grid on the training
+//! part of every run and compared with the others by a complexity-penalised criterion
+//! ([`attribution`]); recalibration of the existing blocks competes as one more candidate. An
+//! effect is named only when it explains a gap that is both statistically decisive and at least
+//! [`MIN_EFFECT_TO_NOISE`] of the noise RMS; what remains is probed for structure no candidate
+//! spans. The named effects are then measured on the held-out part (`shrink`).
+//!
+//! Gap RMS values are beyond the noise floor: `sqrt(max(MSE - sigma^2, 0))` with `sigma^2` the
+//! stream's white measurement noise (first-difference estimate), so that `shrink` measures the
+//! part of the gap the effect removes, not the noise nothing can remove.
+
+pub mod attribution;
+pub mod candidates;
+pub mod regression;
+pub mod report;
+pub mod result;
+pub mod sensor;
+pub mod streams;
+
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+use estimator_core::CoefficientSet;
+use firmware_sim::dataset::Dataset;
+
+use crate::fit::pipeline::{FitConfig, fit_dataset};
+use crate::fit::split::Split;
+use attribution::Profiled;
+use candidates::{Candidate, Context};
+use result::{Confounding, Diagnosis, EffectResult, Gap, Unexplained, Verdict, Where};
+use sensor::{ParamValue, SensorFinding};
+
+/// Smallest effect the diagnosis names, as a ratio of its RMS to the stream's noise RMS: a
+/// smaller one is at the noise floor by definition. Its square is the explained mean square a
+/// candidate needs, in units of the noise variance.
+pub const MIN_EFFECT_TO_NOISE: f64 = 0.5;
+
+/// Evidence a named effect needs: a BIC difference of 10 is "very strong" (Kass & Raftery 1995).
+pub const MIN_DELTA_BIC: f64 = 10.0;
+
+/// Share of a named effect's explained mean square that the structure probe may still find in
+/// the remainder before the gap counts as unattributed.
+pub const MAX_REMAINDER_SHARE: f64 = 0.1;
+
+/// Canonical correlation above which two candidates cannot be told apart with this data.
+pub const CONFOUNDED_CORRELATION: f64 = 0.9;
+
+/// Settings of a diagnosis.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct DiagnoseConfig {
+    /// Training/held-out split of every run (the same as `fit`'s).
+    pub split: Split,
+}
+
+/// Why a diagnosis failed.
+#[derive(Debug, thiserror::Error)]
+pub enum DiagnoseError {
+    /// Fitting the nominal models on the training part failed.
+    #[error("fitting the nominal models on the training part: {0}")]
+    Fit(#[from] crate::fit::FitError),
+    /// The dataset has no samples to diagnose.
+    #[error("the dataset has no runs with samples")]
+    Empty,
+}
+
+/// The sim used, for the report.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SimSource {
+    /// A given coefficient set.
+    Given(String),
+    /// Nominal models fitted on the training part of the data itself.
+    FittedOnTraining,
+}
+
+/// Diagnoses `dataset` against `model` (or against nominal models fitted on its training part).
+/// `progress` is called with the name of each stage.
+pub fn diagnose(
+    dataset: &Dataset,
+    model: Option<(&CoefficientSet, String)>,
+    config: &DiagnoseConfig,
+    progress: &(dyn Fn(&str) + Sync),
+) -> Result<(Diagnosis, Evidence), DiagnoseError> {
+    let clock = Instant::now();
+    if dataset.runs.iter().all(|run| run.channels.is_empty()) {
+        return Err(DiagnoseError::Empty);
+    }
+    let (set, source) = match model {
+        Some((set, name)) => (*set, SimSource::Given(name)),
+        None => {
+            progress("fitting the nominal models on the training part");
+            let fit_config = FitConfig { split: config.split, ..FitConfig::default() };
+            (fit_dataset(dataset, &fit_config, &|_| {})?.set, SimSource::FittedOnTraining)
+        }
+    };
+    progress("running the sim on the recorded inputs");
+    let runs = streams::build(dataset, &set, &config.split);
+    let context = Context {
+        set: &set,
+        moment_scale_nm: dataset.tunnel.dynamic_pressure_pa() * dataset.wing.area_m2 * dataset.wing.span_m,
+        half_span_time_s: dataset.wing.span_m / (2.0 * dataset.tunnel.u_inf_mps),
+        cmu_ref: runs.iter().flat_map(|run| run.cmu.iter().flatten()).copied().fold(0.0, f64::max),
+        n_runs: runs.len(),
+    };
+
+    progress("profiling the balance candidates");
+    let residuals: Vec<Vec<f64>> = runs.iter().map(|run| run.residual.clone()).collect();
+    let base_segments = attribution::segments(&runs, &residuals);
+    let noise_var = regression::difference_noise_var(&base_segments, None);
+    let autocorrelation_time = regression::integrated_autocorrelation(&base_segments, 200);
+    let min_explained = MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE * noise_var;
+    let first_round = profile_all(&runs, &residuals, &context, autocorrelation_time);
+
+    // Forward selection: name the best qualifying candidate, subtract it, repeat on the rest.
+    let mut named: Vec<Profiled> = Vec::new();
+    let mut remainder = residuals.clone();
+    let mut round = first_round.clone();
+    while named.len() < 3 {
+        let Some(best) = round.iter().find(|p| !named.iter().any(|n| n.candidate == p.candidate)).cloned() else {
+            break;
+        };
+        if !qualifies(&best, min_explained) {
+            break;
+        }
+        remainder = attribution::subtract(&best, &runs, &remainder, &context);
+        named.push(best);
+        round = profile_all(&runs, &remainder, &context, autocorrelation_time);
+    }
+
+    progress("probing the remainder and the pressure channels");
+    let remainder_segments = attribution::segments(&runs, &remainder);
+    let probe = regression::fit(&remainder_segments, &attribution::probe_columns(&runs));
+    let probe_explained = probe.as_ref().map_or(0.0, regression::Fit::explained_per_sample);
+    let sensor = sensor::findings(&runs);
+    let sensor_named: Vec<&SensorFinding> = sensor
+        .iter()
+        .filter(|f| {
+            f.explained >= MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE * f.noise_var
+                && f.delta_bic >= MIN_DELTA_BIC
+                && (f.heldout.n == 0 || f.heldout.shrink() > 0.0)
+        })
+        .take(1)
+        .collect();
+
+    // The gap as it stands, on every run's held-out part.
+    let all_touched = vec![true; runs.len()];
+    let gap = regression::heldout_gap(&base_segments, &vec![Vec::new(); runs.len()], &[], &all_touched);
+    let excess_runs: Vec<usize> = (0..runs.len())
+        .filter(|&idx| {
+            let one = [base_segments[idx].clone()];
+            let g = regression::heldout_gap(&one, &[Vec::new()], &[], &[true]);
+            g.mse_before - g.noise_var >= min_explained
+        })
+        .collect();
+
+    let balance_strength = named.first().map_or(0.0, |p| p.explained() / noise_var.max(f64::MIN_POSITIVE));
+    let sensor_strength = sensor_named.first().map_or(0.0, |f| sensor::strength(f));
+    let remainder_structured =
+        named.first().is_some_and(|top| probe_explained >= min_explained.max(MAX_REMAINDER_SHARE * top.explained()));
+
+    let mut effects = Vec::new();
+    let mut where_ = Where::default();
+    let mut unexplained = None;
+    let verdict;
+    if sensor_strength > balance_strength && !sensor_named.is_empty() {
+        verdict = Verdict::Effect;
+        let finding = sensor_named[0];
+        effects.push(sensor_effect(finding));
+        where_.block = Some("sensor".into());
+        where_.channel = finding.channel.clone();
+        where_.alpha_deg = alphas(&runs, &vec![true; runs.len()]);
+    } else if !named.is_empty() && !remainder_structured {
+        verdict = Verdict::Effect;
+        let mut cumulative = residuals.clone();
+        for profiled in &named {
+            effects.push(balance_effect(profiled, &runs, &cumulative, &context));
+            cumulative = attribution::subtract(profiled, &runs, &cumulative, &context);
+        }
+        for finding in &sensor_named {
+            effects.push(sensor_effect(finding));
+        }
+        let top = &named[0];
+        where_.block = Some(top.candidate.block().name().into());
+        where_.alpha_deg = alphas(&runs, &top.fit.touched);
+        where_.runs = runs.iter().zip(&top.fit.touched).filter(|(_, t)| **t).map(|(run, _)| run.file.clone()).collect();
+    } else if !excess_runs.is_empty() || remainder_structured {
+        verdict = Verdict::Unattributed;
+        let touched: Vec<bool> = (0..runs.len()).map(|idx| excess_runs.contains(&idx)).collect();
+        where_.block = None;
+        where_.alpha_deg = alphas(&runs, &touched);
+        where_.runs = excess_runs.iter().map(|&idx| runs[idx].file.clone()).collect();
+        unexplained = Some(Unexplained {
+            description: describe_structure(&runs, &excess_runs, probe.as_ref(), &first_round, noise_var),
+            best_candidate: first_round.first().map(|p| p.candidate.name().to_owned()),
+            best_candidate_explained_to_noise: first_round.first().map_or(0.0, |p| p.explained() / noise_var.max(f64::MIN_POSITIVE)),
+            probe_explained_to_noise: probe_explained / noise_var.max(f64::MIN_POSITIVE),
+        });
+    } else {
+        verdict = Verdict::None;
+    }
+
+    let confounded = confounding(&first_round, &runs, &residuals, &context);
+    let diagnosis = Diagnosis {
+        verdict,
+        gap: Gap {
+            heldout_rms: finite(gap.gap_before()),
+            noise_rms: finite(gap.noise_var.sqrt()),
+            heldout_raw_rms: finite(gap.mse_before.sqrt()),
+            stream: if matches!(where_.block.as_deref(), Some("sensor")) { "pressure" } else { "balance" }.into(),
+        },
+        where_,
+        effects,
+        unexplained,
+        confounded,
+        candidates: first_round.iter().map(result::CandidateSummary::from_profiled(noise_var)).chain(sensor.iter().map(result::CandidateSummary::from_sensor)).collect(),
+        sim: match &source {
+            SimSource::Given(name) => format!("the given coefficient set ({name})"),
+            SimSource::FittedOnTraining => "nominal models fitted on the training part of this dataset".into(),
+        },
+        split: config.split.describe(),
+        noise_var_training: finite(noise_var),
+        autocorrelation_time_samples: finite(autocorrelation_time),
+        elapsed_s: clock.elapsed().as_secs_f64(),
+    };
+    Ok((diagnosis, Evidence { runs, first_round, named, remainder }))
+}
+
+/// The working data behind a diagnosis, for the report's plots.
+#[derive(Debug, Clone)]
+pub struct Evidence {
+    /// Streams of every run.
+    pub runs: Vec<streams::RunStreams>,
+    /// Every balance candidate profiled on the original residual, best first.
+    pub first_round: Vec<Profiled>,
+    /// The named balance effects, in the order they were selected.
+    pub named: Vec<Profiled>,
+    /// The balance residual after the named effects.
+    pub remainder: Vec<Vec<f64>>,
+}
+
+fn profile_all(
+    runs: &[streams::RunStreams],
+    residuals: &[Vec<f64>],
+    context: &Context<'_>,
+    autocorrelation_time: f64,
+) -> Vec<Profiled> {
+    let mut all: Vec<Profiled> = Candidate::ALL
+        .iter()
+        .filter_map(|&candidate| attribution::profile(candidate, runs, residuals, context, autocorrelation_time))
+        .collect();
+    all.sort_by(|a, b| b.delta_bic.total_cmp(&a.delta_bic));
+    all
+}
+
+fn qualifies(profiled: &Profiled, min_explained: f64) -> bool {
+    profiled.delta_bic >= MIN_DELTA_BIC && profiled.explained() >= min_explained && profiled.heldout.shrink() > 0.0
+}
+
+fn finite(value: f64) -> f64 {
+    if value.is_finite() { value } else { 0.0 }
+}
+
+fn alphas(runs: &[streams::RunStreams], touched: &[bool]) -> Vec<f64> {
+    let mut out: Vec<f64> = runs.iter().zip(touched).filter(|(_, t)| **t).map(|(run, _)| run.alpha_deg).collect();
+    out.sort_by(f64::total_cmp);
+    out.dedup();
+    out
+}
+
+fn balance_effect(
+    profiled: &Profiled,
+    runs: &[streams::RunStreams],
+    residuals: &[Vec<f64>],
+    context: &Context<'_>,
+) -> EffectResult {
+    let segments = attribution::segments(runs, residuals);
+    let columns = attribution::all_columns(profiled.candidate, &profiled.hyper, runs, context);
+    let gap = regression::heldout_gap(&segments, &columns, &profiled.fit.beta, &profiled.fit.touched);
+    EffectResult {
+        name: profiled.candidate.name().into(),
+        block: profiled.candidate.block().name().into(),
+        params: result::physical_params(profiled, context),
+        heldout_rms_before: finite(gap.gap_before()),
+        heldout_rms_after: finite(gap.gap_after()),
+        shrink: finite(gap.shrink()),
+        delta_bic: finite(profiled.delta_bic),
+        effect_to_noise: finite((profiled.explained() / gap.noise_var.max(f64::MIN_POSITIVE)).sqrt()),
+        evidence: format!(
+            "explains {:.3e} of C_l RMS on the training part of {} run(s) (noise {:.3e}); delta BIC {:.0}",
+            profiled.explained().sqrt(),
+            profiled.fit.touched.iter().filter(|t| **t).count(),
+            gap.noise_var.sqrt(),
+            profiled.delta_bic
+        ),
+    }
+}
+
+fn sensor_effect(finding: &SensorFinding) -> EffectResult {
+    let mut params = BTreeMap::new();
+    for (key, value) in &finding.params {
+        let json = match value {
+            ParamValue::Number(number) => serde_json::json!(finite(*number)),
+            ParamValue::Text(text) => serde_json::json!(text),
+        };
+        params.insert(key.clone(), json);
+    }
+    if let Some(channel) = &finding.channel {
+        params.insert("channel".into(), serde_json::json!(channel));
+    }
+    let dead = finding.heldout.n == 0;
+    EffectResult {
+        name: finding.name.into(),
+        block: "sensor".into(),
+        params,
+        heldout_rms_before: finite(finding.heldout.gap_before()),
+        heldout_rms_after: finite(finding.heldout.gap_after()),
+        shrink: if dead { 1.0 } else { finite(finding.heldout.shrink()) },
+        delta_bic: finite(finding.delta_bic.min(1e12)),
+        effect_to_noise: finite((finding.explained.min(1e12) / finding.noise_var.max(f64::MIN_POSITIVE)).sqrt()),
+        evidence: finding.evidence.clone(),
+    }
+}
+
+fn describe_structure(
+    runs: &[streams::RunStreams],
+    excess_runs: &[usize],
+    probe: Option<&regression::Fit>,
+    first_round: &[Profiled],
+    noise_var: f64,
+) -> String {
+    let kinds: Vec<String> =
+        excess_runs.iter().map(|&idx| format!("{} ({} at {} deg)", runs[idx].file, runs[idx].kind.as_str(), runs[idx].alpha_deg)).collect();
+    let probe_share = probe.map_or(0.0, |fit| fit.explained_per_sample() / noise_var.max(f64::MIN_POSITIVE));
+    let best = first_round
+        .first()
+        .map(|p| format!("; the best candidate, {}, explains {:.2} noise variances", p.candidate.name(), p.explained() / noise_var.max(f64::MIN_POSITIVE)))
+        .unwrap_or_default();
+    format!(
+        "a gap above the noise floor in {} with no candidate that explains it{best}; a generic probe (odd powers of the roll angle, rate nonlinearity, slowly varying gain on the moment) finds {:.2} noise variances of structure",
+        if kinds.is_empty() { "the remainder".to_owned() } else { kinds.join(", ") },
+        probe_share
+    )
+}
+
+/// Pairs among the leading candidates whose column spans are nearly the same (largest
+/// canonical correlation above [`CONFOUNDED_CORRELATION`]) and whose evidence is close: they
+/// cannot be told apart with this data (gap-diagnosis.md section 4.3 step 7).
+fn confounding(
+    ranked: &[Profiled],
+    runs: &[streams::RunStreams],
+    residuals: &[Vec<f64>],
+    context: &Context<'_>,
+) -> Vec<Confounding> {
+    let segments = attribution::segments(runs, residuals);
+    let lead: Vec<&Profiled> = ranked.iter().filter(|p| p.delta_bic > 0.0).take(3).collect();
+    let mut out = Vec::new();
+    for (i, a) in lead.iter().enumerate() {
+        for b in &lead[i + 1..] {
+            if (a.delta_bic - b.delta_bic).abs() >= MIN_DELTA_BIC {
+                continue;
+            }
+            let cols_a = attribution::all_columns(a.candidate, &a.hyper, runs, context);
+            let cols_b = attribution::all_columns(b.candidate, &b.hyper, runs, context);
+            let correlation = result::canonical_correlation(&segments, &cols_a, &cols_b);
+            if correlation > CONFOUNDED_CORRELATION {
+                out.push(Confounding {
+                    a: a.candidate.name().into(),
+                    b: b.candidate.name().into(),
+                    canonical_correlation: finite(correlation),
+                    experiment: format!("{}; {}", a.candidate.separating_experiment(), b.candidate.separating_experiment()),
+                });
+            }
+        }
+    }
+    out
+}

@@ -1,0 +1,191 @@
+//! The human-readable diagnosis: verdict, gap ledger, candidate table, named effects with their
+//! held-out shrink, confounded pairs, and plots (residual before and after, profile curves).
+
+use crate::plot::{self, Axes, Series};
+use crate::report::{Figure, Report, Section, Table};
+
+use super::result::{Diagnosis, Verdict};
+use super::Evidence;
+
+/// Points plotted per time series.
+const PLOT_POINTS: usize = 1500;
+
+/// Builds the report of a diagnosis.
+#[must_use]
+pub fn build(diagnosis: &Diagnosis, evidence: &Evidence, dataset_name: &str) -> Report {
+    let mut report = Report {
+        title: format!("Sim-to-real gap diagnosis: {dataset_name}"),
+        intro: vec![
+            format!("Sim: {}. Split: {}.", diagnosis.sim, diagnosis.split),
+            "Gap RMS values are beyond the noise floor, `sqrt(max(MSE - noise^2, 0))`, with the noise from first differences of the residual; `shrink = 1 - after / before` on the held-out part.".into(),
+        ],
+        sections: Vec::new(),
+    };
+    report.sections.push(verdict_section(diagnosis));
+    report.sections.push(ledger_section(diagnosis));
+    report.sections.push(candidates_section(diagnosis));
+    report.sections.push(plots_section(evidence));
+    report
+}
+
+fn fmt(value: f64) -> String {
+    format!("{value:.3e}")
+}
+
+fn verdict_section(diagnosis: &Diagnosis) -> Section {
+    let mut paragraphs = vec![format!(
+        "**Verdict: {}.** Held-out gap {} beyond a noise RMS of {} (raw residual RMS {}, {} stream).",
+        diagnosis.verdict.as_str(),
+        fmt(diagnosis.gap.heldout_rms),
+        fmt(diagnosis.gap.noise_rms),
+        fmt(diagnosis.gap.heldout_raw_rms),
+        diagnosis.gap.stream
+    )];
+    if let Some(unexplained) = &diagnosis.unexplained {
+        paragraphs.push(format!("Unattributed: {}.", unexplained.description));
+    }
+    if diagnosis.verdict == Verdict::None {
+        paragraphs.push("No candidate explains a gap of at least half the noise RMS with decisive evidence: the gap is at the noise floor.".into());
+    }
+    for pair in &diagnosis.confounded {
+        paragraphs.push(format!(
+            "`{}` and `{}` cannot be told apart with this data (canonical correlation {:.3}); to separate them: {}.",
+            pair.a, pair.b, pair.canonical_correlation, pair.experiment
+        ));
+    }
+    let rows = diagnosis
+        .effects
+        .iter()
+        .map(|effect| {
+            let params = effect
+                .params
+                .iter()
+                .map(|(k, v)| format!("{k} = {}", v.as_f64().map_or_else(|| v.to_string(), |x| format!("{x:.4}"))))
+                .collect::<Vec<_>>()
+                .join(", ");
+            vec![
+                format!("`{}`", effect.name),
+                effect.block.clone(),
+                params,
+                fmt(effect.heldout_rms_before),
+                fmt(effect.heldout_rms_after),
+                format!("{:.2}", effect.shrink),
+                format!("{:.2}", effect.effect_to_noise),
+                effect.evidence.clone(),
+            ]
+        })
+        .collect();
+    Section {
+        heading: "Verdict and named effects".into(),
+        paragraphs,
+        tables: vec![Table {
+            caption: "Named effects, most responsible first (parameters fitted on the training part; gap on the held-out part)".into(),
+            header: ["effect", "block", "parameters", "gap before", "gap after", "shrink", "effect/noise", "evidence"]
+                .map(String::from)
+                .to_vec(),
+            rows,
+        }],
+        figures: Vec::new(),
+    }
+}
+
+fn ledger_section(diagnosis: &Diagnosis) -> Section {
+    let where_ = &diagnosis.where_;
+    let mut paragraphs = vec![format!(
+        "Block: {}. Angles of attack: {:?} deg. Channel: {}. Band: {}. Runs: {}.",
+        where_.block.as_deref().unwrap_or("none"),
+        where_.alpha_deg,
+        where_.channel.as_deref().unwrap_or("none"),
+        where_.band_hz.map_or_else(|| "n/a".to_owned(), |b| format!("{:.1}-{:.1} Hz", b[0], b[1])),
+        if where_.runs.is_empty() { "none".to_owned() } else { where_.runs.join(", ") }
+    )];
+    paragraphs.push(format!(
+        "Balance residual on the training part: noise variance {:.3e}, integrated autocorrelation time {:.1} samples; diagnosis took {:.2} s.",
+        diagnosis.noise_var_training, diagnosis.autocorrelation_time_samples, diagnosis.elapsed_s
+    ));
+    let rows = where_.regimes.iter().map(|r| vec![r.label.clone(), format!("{:.3}", r.share)]).collect();
+    Section {
+        heading: "Where the gap lies".into(),
+        paragraphs,
+        tables: vec![Table { caption: "Share of the residual energy by regime".into(), header: vec!["regime".into(), "share".into()], rows }],
+        figures: Vec::new(),
+    }
+}
+
+fn candidates_section(diagnosis: &Diagnosis) -> Section {
+    let rows = diagnosis
+        .candidates
+        .iter()
+        .map(|c| {
+            let hyper = c
+                .hyper
+                .iter()
+                .map(|(k, v)| format!("{k} = {}", v.as_f64().map_or_else(|| v.to_string(), |x| format!("{x:.4}"))))
+                .collect::<Vec<_>>()
+                .join(", ");
+            vec![
+                format!("`{}`", c.name),
+                c.block.clone(),
+                hyper,
+                format!("{:.3}", c.explained_to_noise),
+                format!("{:.1}", c.delta_bic),
+                format!("{:.2}", c.heldout_shrink),
+            ]
+        })
+        .collect();
+    Section {
+        heading: "Which effect: every candidate".into(),
+        paragraphs: vec![
+            "Each candidate is profiled over its grid of physical parameters on the training part; `explained/noise` is the mean square it explains on the runs it touches over the noise variance; `delta BIC` penalises its columns and profiled parameters on the effective number of samples. Recalibration of the existing blocks competes with the new effects.".into(),
+        ],
+        tables: vec![Table {
+            caption: "Candidates (balance, best first; then sensor)".into(),
+            header: ["candidate", "block", "profiled parameters", "explained/noise", "delta BIC", "held-out shrink"].map(String::from).to_vec(),
+            rows,
+        }],
+        figures: Vec::new(),
+    }
+}
+
+fn plots_section(evidence: &Evidence) -> Section {
+    let mut figures = Vec::new();
+    if let Some((run_idx, run)) = evidence.runs.iter().enumerate().max_by(|a, b| {
+        let energy = |idx: usize| -> f64 {
+            let run = &evidence.runs[idx];
+            run.heldout.clone().map(|i| run.residual[i]).filter(|v| v.is_finite()).map(|v| v * v).sum()
+        };
+        energy(a.0).total_cmp(&energy(b.0))
+    }) {
+        let step = (run.heldout.len() / PLOT_POINTS).max(1);
+        let series = |name: &str, values: &[f64]| Series {
+            name: name.into(),
+            points: run.heldout.clone().step_by(step).map(|i| (run.t_s[i], values[i])).collect(),
+            line: true,
+        };
+        figures.push(Figure {
+            file: "residual.svg".into(),
+            caption: format!("Balance residual on the held-out part of {}, before and after the named effects", run.file),
+            svg: plot::svg(
+                &Axes { title: format!("Residual, {}", run.file), x_label: "t (s)".into(), y_label: "C_l".into(), log_y: false },
+                &[series("measured - sim", &run.residual), series("after the named effects", &evidence.remainder[run_idx])],
+            ),
+        });
+    }
+    for profiled in evidence.first_round.iter().filter(|p| p.profile.len() > 1).take(3) {
+        let name = profiled.candidate.name();
+        figures.push(Figure {
+            file: format!("profile_{name}.svg"),
+            caption: format!("Profile of `{name}`: training residual sum of squares over its first grid parameter"),
+            svg: plot::svg(
+                &Axes {
+                    title: format!("Profile, {name}"),
+                    x_label: profiled.hyper.first().map_or("parameter", |(k, _)| k).into(),
+                    y_label: "SSR".into(),
+                    log_y: false,
+                },
+                &[Series { name: name.into(), points: profiled.profile.clone(), line: false }],
+            ),
+        });
+    }
+    Section { heading: "Plots".into(), paragraphs: Vec::new(), tables: Vec::new(), figures }
+}

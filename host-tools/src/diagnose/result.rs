@@ -1,0 +1,309 @@
+//! The machine-readable result, `diagnosis.json` (shared/spec/diagnosis.md, "Machine-readable
+//! result"), and the conversion of fitted regressor coefficients into physical parameters.
+
+use std::collections::BTreeMap;
+
+use nalgebra::DMatrix;
+use serde::Serialize;
+
+use super::attribution::Profiled;
+use super::candidates::{Candidate, Context};
+use super::regression::Segment;
+use super::sensor::{ParamValue, SensorFinding};
+
+/// Standard gravity, m/s^2.
+const G_MPS2: f64 = 9.806_65;
+
+/// The verdict.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Verdict {
+    /// A named effect explains the gap.
+    Effect,
+    /// The gap is at the noise floor.
+    None,
+    /// A real gap that no candidate explains.
+    Unattributed,
+}
+
+impl Verdict {
+    /// As written in the JSON.
+    #[must_use]
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            Self::Effect => "effect",
+            Self::None => "none",
+            Self::Unattributed => "unattributed",
+        }
+    }
+}
+
+/// The whole diagnosis.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Diagnosis {
+    /// `effect`, `none` or `unattributed`.
+    pub verdict: Verdict,
+    /// The gap before any effect is added.
+    pub gap: Gap,
+    /// Where the gap lies.
+    #[serde(rename = "where")]
+    pub where_: Where,
+    /// Named effects, most responsible first; empty unless the verdict is `effect`.
+    pub effects: Vec<EffectResult>,
+    /// For `unattributed`: the structure of the gap.
+    pub unexplained: Option<Unexplained>,
+    /// Candidate pairs that cannot be told apart with this data, with the experiment that would.
+    pub confounded: Vec<Confounding>,
+    /// Every candidate's evidence, balance candidates best first, then the sensor candidates.
+    pub candidates: Vec<CandidateSummary>,
+    /// The sim the data was compared with.
+    pub sim: String,
+    /// The training/held-out split.
+    pub split: String,
+    /// Noise variance of the balance residual on the training part, C_l^2.
+    pub noise_var_training: f64,
+    /// Integrated autocorrelation time of the balance residual, samples.
+    pub autocorrelation_time_samples: f64,
+    /// Wall time of the diagnosis, s.
+    pub elapsed_s: f64,
+}
+
+/// The gap of the stream the verdict concerns, on the held-out part of every run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Gap {
+    /// RMS of the residual beyond the noise floor, `sqrt(max(MSE - noise^2, 0))`.
+    pub heldout_rms: f64,
+    /// RMS of the white measurement noise (first-difference estimate).
+    pub noise_rms: f64,
+    /// RMS of the residual itself.
+    pub heldout_raw_rms: f64,
+    /// `balance` (C_l units) or `pressure` (Cp units).
+    pub stream: String,
+}
+
+/// Where the gap lies.
+#[derive(Debug, Clone, PartialEq, Default, Serialize)]
+pub struct Where {
+    /// Block of the sim (`disturbance`, `plant`, `coupling`, `sensor`, `balance`), or null.
+    pub block: Option<String>,
+    /// Angles of attack of the runs the gap lies in, deg.
+    pub alpha_deg: Vec<f64>,
+    /// Frequency band holding most of the gap's power, Hz.
+    pub band_hz: Option<[f64; 2]>,
+    /// The pressure channel, when the gap lies in one sensor.
+    pub channel: Option<String>,
+    /// The runs the gap lies in.
+    pub runs: Vec<String>,
+    /// Regime shares of the residual energy (the gap ledger's summary).
+    pub regimes: Vec<RegimeShareSummary>,
+}
+
+/// One regime bin of the gap ledger.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RegimeShareSummary {
+    /// The bin.
+    pub label: String,
+    /// Share of the residual energy beyond noise.
+    pub share: f64,
+}
+
+/// A named effect.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct EffectResult {
+    /// Name from the vocabulary.
+    pub name: String,
+    /// Block.
+    pub block: String,
+    /// Physical parameters fitted on the training part.
+    pub params: BTreeMap<String, serde_json::Value>,
+    /// Held-out gap RMS before the effect is added (beyond noise).
+    pub heldout_rms_before: f64,
+    /// Held-out gap RMS with the effect added.
+    pub heldout_rms_after: f64,
+    /// `1 - after / before`.
+    pub shrink: f64,
+    /// Complexity-penalised evidence on the training part.
+    pub delta_bic: f64,
+    /// RMS of the fitted effect over the noise RMS, on the runs it touches.
+    pub effect_to_noise: f64,
+    /// One line of evidence.
+    pub evidence: String,
+}
+
+/// The structure of an unattributed gap.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Unexplained {
+    /// In words: where, which band and regime, what correlates.
+    pub description: String,
+    /// The best candidate, which was not enough.
+    pub best_candidate: Option<String>,
+    /// What it explains, in noise variances.
+    pub best_candidate_explained_to_noise: f64,
+    /// What the structure probe finds in the remainder, in noise variances.
+    pub probe_explained_to_noise: f64,
+}
+
+/// Two candidates this data cannot separate.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Confounding {
+    /// One candidate.
+    pub a: String,
+    /// The other.
+    pub b: String,
+    /// Largest canonical correlation of their regressors.
+    pub canonical_correlation: f64,
+    /// The experiment that would separate them.
+    pub experiment: String,
+}
+
+/// One candidate's evidence.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CandidateSummary {
+    /// Name.
+    pub name: String,
+    /// Block.
+    pub block: String,
+    /// Profiled nonlinear parameters (or the channel).
+    pub hyper: BTreeMap<String, serde_json::Value>,
+    /// Explained mean square over the noise variance, training part.
+    pub explained_to_noise: f64,
+    /// Complexity-penalised evidence.
+    pub delta_bic: f64,
+    /// Held-out shrink if it were added.
+    pub heldout_shrink: f64,
+}
+
+impl CandidateSummary {
+    /// From a profiled balance candidate.
+    pub fn from_profiled(noise_var: f64) -> impl Fn(&Profiled) -> Self {
+        move |profiled| Self {
+            name: profiled.candidate.name().into(),
+            block: profiled.candidate.block().name().into(),
+            hyper: profiled.hyper.iter().map(|(k, v)| ((*k).to_owned(), serde_json::json!(finite(*v)))).collect(),
+            explained_to_noise: finite(profiled.explained() / noise_var.max(f64::MIN_POSITIVE)),
+            delta_bic: finite(profiled.delta_bic),
+            heldout_shrink: finite(profiled.heldout.shrink()),
+        }
+    }
+
+    /// From a sensor finding.
+    #[must_use]
+    pub fn from_sensor(finding: &SensorFinding) -> Self {
+        let mut hyper = BTreeMap::new();
+        for (key, value) in &finding.params {
+            hyper.insert(
+                key.clone(),
+                match value {
+                    ParamValue::Number(n) => serde_json::json!(finite(*n)),
+                    ParamValue::Text(t) => serde_json::json!(t),
+                },
+            );
+        }
+        Self {
+            name: finding.name.into(),
+            block: "sensor".into(),
+            hyper,
+            explained_to_noise: finite(finding.explained.min(1e12) / finding.noise_var.max(f64::MIN_POSITIVE)),
+            delta_bic: finite(finding.delta_bic.min(1e12)),
+            heldout_shrink: finite(finding.heldout.shrink()),
+        }
+    }
+}
+
+fn finite(value: f64) -> f64 {
+    if value.is_finite() { value } else { 0.0 }
+}
+
+/// The fitted regressor coefficients of a balance effect as physical parameters.
+#[must_use]
+pub fn physical_params(profiled: &Profiled, context: &Context<'_>) -> BTreeMap<String, serde_json::Value> {
+    let beta = &profiled.fit.beta;
+    let b = |idx: usize| beta.get(idx).copied().unwrap_or(0.0);
+    let mut out: BTreeMap<String, f64> = profiled.hyper.iter().map(|(k, v)| ((*k).to_owned(), *v)).collect();
+    match profiled.candidate {
+        Candidate::ActuatorDelay | Candidate::ActuatorLag => {
+            out.insert("gain".into(), b(0));
+        }
+        Candidate::InertialTare => {
+            // Balance = aero - I phi_ddot: the column's coefficient is -I / (q S b).
+            out.insert("ixx_kgm2".into(), -b(0) * context.moment_scale_nm);
+        }
+        Candidate::GravityTare => {
+            // m g d (sin(phi + p) - sin p) = m g d cos p sin(phi) + m g d sin p (cos(phi) - 1).
+            let moment_nm = context.moment_scale_nm * b(0).hypot(b(1));
+            out.insert("weight_moment_nm".into(), moment_nm);
+            out.insert("mass_offset_kgm".into(), moment_nm / G_MPS2);
+            out.insert("phase_deg".into(), b(1).atan2(b(0)).to_degrees());
+        }
+        Candidate::RollDamping => {
+            out.insert("clp".into(), b(0));
+        }
+        Candidate::VortexLag => {
+            out.insert("weight".into(), b(0));
+        }
+        Candidate::Coupling => {
+            for (idx, name) in ["egk_x_differential_cmu", "egk_x_total_cmu", "afc_x_phi", "afc_x_abs_phi"].iter().enumerate() {
+                out.insert((*name).into(), b(idx));
+            }
+        }
+        Candidate::BalanceResonance => {
+            out.insert("gain_load".into(), b(0));
+            out.insert("gain_inertial".into(), b(1));
+        }
+        Candidate::BiasDrift => {
+            let n_runs = beta.len() / 2;
+            let drift_end: Vec<f64> = (0..n_runs).map(|run| b(2 * run) + b(2 * run + 1)).collect();
+            let worst = drift_end.iter().copied().fold(0.0, |acc: f64, v| if v.abs() > acc.abs() { v } else { acc });
+            out.insert("largest_drift_over_run".into(), worst);
+        }
+        Candidate::Recalibration => {
+            out.insert("disturbance_gain".into(), 1.0 + b(0));
+            out.insert("plant_gain".into(), 1.0 + b(1));
+        }
+    }
+    out.into_iter().map(|(k, v)| (k, serde_json::json!(finite(v)))).collect()
+}
+
+/// Largest canonical correlation between the spans of two column sets over the training
+/// samples (centred per run): `sqrt(lambda_max(S_aa^-1 S_ab S_bb^-1 S_ba))`.
+#[must_use]
+pub fn canonical_correlation(segments: &[Segment<'_>], a: &[Vec<Vec<f64>>], b: &[Vec<Vec<f64>>]) -> f64 {
+    let (pa, pb) = (a.first().map_or(0, Vec::len), b.first().map_or(0, Vec::len));
+    if pa == 0 || pb == 0 {
+        return 0.0;
+    }
+    let p = pa + pb;
+    let mut s = DMatrix::<f64>::zeros(p, p);
+    for ((segment, ca), cb) in segments.iter().zip(a).zip(b) {
+        let idx: Vec<usize> = segment.training.clone().collect();
+        if idx.is_empty() {
+            continue;
+        }
+        let cols: Vec<Vec<f64>> = ca
+            .iter()
+            .chain(cb)
+            .map(|col| {
+                let mean = idx.iter().map(|&i| col[i]).sum::<f64>() / idx.len() as f64;
+                idx.iter().map(|&i| col[i] - mean).collect()
+            })
+            .collect();
+        for i in 0..p {
+            for j in i..p {
+                let v: f64 = cols[i].iter().zip(&cols[j]).map(|(x, y)| x * y).sum();
+                s[(i, j)] += v;
+                if i != j {
+                    s[(j, i)] += v;
+                }
+            }
+        }
+    }
+    let saa = s.view((0, 0), (pa, pa)).into_owned();
+    let sbb = s.view((pa, pa), (pb, pb)).into_owned();
+    let sab = s.view((0, pa), (pa, pb)).into_owned();
+    let (Ok(saa_inv), Ok(sbb_inv)) = (saa.pseudo_inverse(1e-12), sbb.pseudo_inverse(1e-12)) else {
+        return 0.0;
+    };
+    let m = &saa_inv * &sab * &sbb_inv * sab.transpose();
+    let largest = m.complex_eigenvalues().iter().map(|z| z.re).fold(0.0, f64::max);
+    largest.clamp(0.0, 1.0).sqrt()
+}

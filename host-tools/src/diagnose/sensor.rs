@@ -1,0 +1,364 @@
+//! Sensor candidates, on the pressure filter's per-channel innovations (gap-diagnosis.md
+//! sections 1.6 and 2.6): a tubing lag (the innovation follows `-tau dp/dt`, on every channel or
+//! on some) and a faulty channel (stuck, dead, biased or spiking: one channel departs from the
+//! other eleven). Gaps here are in Cp units.
+
+use super::regression::{self, Segment};
+use super::streams::RunStreams;
+
+/// Shortest run of identical raw readings that counts as a stuck channel, s: a live transducer
+/// with any noise never repeats its reading this long.
+const STUCK_MIN_S: f64 = 0.05;
+
+/// Innovation beyond this many robust standard deviations is a spike.
+const SPIKE_SIGMA: f64 = 6.0;
+
+/// A sensor finding with its strength.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SensorFinding {
+    /// `pressure_lag` or `pressure_fault`.
+    pub name: &'static str,
+    /// Physical parameters.
+    pub params: Vec<(String, ParamValue)>,
+    /// The channel, for a single-channel finding (`cp07`).
+    pub channel: Option<String>,
+    /// Mean square the finding explains per affected training sample, Cp^2.
+    pub explained: f64,
+    /// Noise variance of the affected channels' innovations, Cp^2.
+    pub noise_var: f64,
+    /// Evidence: `N_eff ln(SSR_0 / SSR) - k ln N_eff`.
+    pub delta_bic: f64,
+    /// Held-out gap before and after, Cp.
+    pub heldout: regression::HeldoutGap,
+    /// One line of evidence for the report.
+    pub evidence: String,
+}
+
+/// A parameter value: a number or a word (the fault mode).
+#[derive(Debug, Clone, PartialEq)]
+pub enum ParamValue {
+    /// A number.
+    Number(f64),
+    /// A word.
+    Text(String),
+}
+
+/// Name of channel `tap` (0-based) as in the dataset (`cp01`).
+#[must_use]
+pub fn channel_name(tap: usize) -> String {
+    format!("cp{:02}", tap + 1)
+}
+
+/// Every sensor finding, strongest first.
+#[must_use]
+pub fn findings(runs: &[RunStreams]) -> Vec<SensorFinding> {
+    let n_taps = runs.first().map_or(0, |run| run.cp.len());
+    let mut out = Vec::new();
+    if n_taps == 0 {
+        return out;
+    }
+    out.extend(lag_findings(runs, n_taps));
+    out.extend((0..n_taps).filter_map(|tap| fault_finding(runs, tap, n_taps)));
+    out.sort_by(|a, b| strength(b).total_cmp(&strength(a)));
+    out
+}
+
+/// Strength of a finding in noise units: explained mean square over the noise variance.
+#[must_use]
+pub fn strength(finding: &SensorFinding) -> f64 {
+    if finding.noise_var > 0.0 { finding.explained / finding.noise_var } else { 0.0 }
+}
+
+fn segments_of(runs: &[RunStreams], tap: usize) -> Vec<Segment<'_>> {
+    runs.iter()
+        .map(|run| Segment { residual: &run.innovation[tap], training: run.training.clone(), heldout: run.heldout.clone() })
+        .collect()
+}
+
+/// The lag candidate: all channels with one time constant, or the single channel that gains
+/// most; whichever has the better complexity-penalised evidence.
+fn lag_findings(runs: &[RunStreams], n_taps: usize) -> Vec<SensorFinding> {
+    let mut per_channel = Vec::new();
+    let (mut pooled_segments, mut pooled_columns) = (Vec::new(), Vec::new());
+    for tap in 0..n_taps {
+        let segments = segments_of(runs, tap);
+        let columns: Vec<Vec<Vec<f64>>> = runs.iter().map(|run| vec![clean(&run.cp_dot[tap])]).collect();
+        if let Some(fit) = regression::fit(&segments, &columns) {
+            per_channel.push((tap, fit, segments.clone(), columns.clone()));
+        }
+        pooled_segments.extend(segments);
+        pooled_columns.extend(columns);
+    }
+    let mut out = Vec::new();
+    if let Some(fit) = regression::fit(&pooled_segments, &pooled_columns) {
+        let noise_var = regression::difference_noise_var(&pooled_segments, None);
+        let tau = regression::integrated_autocorrelation(&pooled_segments, 50);
+        let heldout = regression::heldout_gap(&pooled_segments, &pooled_columns, &fit.beta, &fit.touched);
+        let tau_s = -fit.beta[0];
+        out.push(SensorFinding {
+            name: "pressure_lag",
+            params: vec![("tau_s".into(), ParamValue::Number(tau_s)), ("channels".into(), ParamValue::Text("all".into()))],
+            channel: None,
+            explained: fit.explained_per_sample(),
+            noise_var,
+            delta_bic: delta_bic(&fit, tau, 1),
+            heldout,
+            evidence: format!("every channel's innovation regresses on its own dCp/dt with tau = {:.1} ms", 1e3 * tau_s),
+        });
+    }
+    if let Some((tap, fit, segments, columns)) =
+        per_channel.into_iter().max_by(|a, b| a.1.explained_per_sample().total_cmp(&b.1.explained_per_sample()))
+    {
+        let noise_var = regression::difference_noise_var(&segments, None);
+        let tau = regression::integrated_autocorrelation(&segments, 50);
+        let heldout = regression::heldout_gap(&segments, &columns, &fit.beta, &fit.touched);
+        let tau_s = -fit.beta[0];
+        out.push(SensorFinding {
+            name: "pressure_lag",
+            params: vec![
+                ("tau_s".into(), ParamValue::Number(tau_s)),
+                ("channels".into(), ParamValue::Text(channel_name(tap))),
+            ],
+            channel: Some(channel_name(tap)),
+            explained: fit.explained_per_sample(),
+            noise_var,
+            // One channel out of twelve chosen: the choice costs ln 12 more.
+            delta_bic: delta_bic(&fit, tau, 1) - (n_taps as f64).ln(),
+            heldout,
+            evidence: format!("{}'s innovation regresses on its dCp/dt with tau = {:.1} ms", channel_name(tap), 1e3 * tau_s),
+        });
+    }
+    out
+}
+
+fn clean(values: &[f64]) -> Vec<f64> {
+    values.iter().map(|v| if v.is_finite() { *v } else { 0.0 }).collect()
+}
+
+/// `N_eff ln(SSR_0 / SSR) - k ln N_eff` with `N_eff = N / tau`.
+#[must_use]
+pub fn delta_bic(fit: &regression::Fit, autocorrelation_time: f64, k: usize) -> f64 {
+    let n_eff = fit.n as f64 / autocorrelation_time.max(1.0);
+    if fit.ssr <= 0.0 || fit.ssr_base <= 0.0 || n_eff < 2.0 {
+        return 0.0;
+    }
+    n_eff * (fit.ssr_base / fit.ssr).ln() - k as f64 * n_eff.ln()
+}
+
+/// The fault candidate of one channel: the most explanatory of dead, stuck, bias and spike.
+fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<SensorFinding> {
+    let name = channel_name(tap);
+    // Dead: the channel is missing where the others are measured.
+    let (mut missing, mut others_missing, mut total) = (0usize, 0usize, 0usize);
+    for run in runs {
+        for idx in 0..run.len() {
+            total += 1;
+            let others = (0..n_taps).filter(|&other| other != tap && !run.cp[other][idx].is_finite()).count();
+            if !run.cp[tap][idx].is_finite() {
+                missing += 1;
+            }
+            if others * 2 > n_taps - 1 {
+                others_missing += 1;
+            }
+        }
+    }
+    let segments = segments_of(runs, tap);
+    let noise_var = regression::difference_noise_var(&segments, None).max(f64::MIN_POSITIVE);
+    let missing_fraction = missing as f64 / total.max(1) as f64;
+    let others_fraction = others_missing as f64 / total.max(1) as f64;
+    if missing_fraction > 0.02 && missing_fraction > 10.0 * others_fraction {
+        let onset = first_long_gap_s(runs, tap);
+        return Some(SensorFinding {
+            name: "pressure_fault",
+            params: vec![
+                ("mode".into(), ParamValue::Text("dead".into())),
+                ("start_s".into(), ParamValue::Number(onset)),
+                ("missing_fraction".into(), ParamValue::Number(missing_fraction)),
+            ],
+            channel: Some(name.clone()),
+            // A dead channel carries no reading: its whole signal is the gap.
+            explained: f64::INFINITY,
+            noise_var,
+            delta_bic: f64::INFINITY,
+            heldout: regression::HeldoutGap { mse_before: 0.0, mse_after: 0.0, noise_var: 0.0, n: 0 },
+            evidence: format!("{name} is missing in {:.1} % of the samples (the others in {:.1} %)", 100.0 * missing_fraction, 100.0 * others_fraction),
+        });
+    }
+    // Stuck: identical raw readings over a long stretch.
+    let (stuck_len_s, stuck_start_s) = longest_constant_run(runs, tap);
+    if stuck_len_s >= STUCK_MIN_S {
+        let columns: Vec<Vec<Vec<f64>>> = runs
+            .iter()
+            .map(|run| {
+                // After the onset the reading carries no information: explain the innovation there.
+                let onset = run.t_s.iter().position(|t| *t >= stuck_start_s).unwrap_or(run.len());
+                vec![(0..run.len()).map(|idx| if idx >= onset { run.innovation[tap][idx].max(-1e3).min(1e3) } else { 0.0 }).map(|v| if v.is_finite() { v } else { 0.0 }).collect()]
+            })
+            .collect();
+        let fit = regression::fit_through_origin(&segments, &columns)?;
+        let heldout = regression::heldout_gap(&segments, &columns, &[1.0], &fit.touched);
+        return Some(SensorFinding {
+            name: "pressure_fault",
+            params: vec![
+                ("mode".into(), ParamValue::Text("stuck".into())),
+                ("start_s".into(), ParamValue::Number(stuck_start_s)),
+                ("constant_for_s".into(), ParamValue::Number(stuck_len_s)),
+            ],
+            channel: Some(name.clone()),
+            explained: fit.explained_per_sample(),
+            noise_var,
+            delta_bic: f64::INFINITY,
+            heldout,
+            evidence: format!("{name} repeats one reading for {stuck_len_s:.2} s from t = {stuck_start_s:.2} s"),
+        });
+    }
+    // Spikes: isolated innovations far beyond the channel's robust spread.
+    let robust_sigma = robust_sigma(&segments);
+    let spike_columns: Vec<Vec<Vec<f64>>> = runs
+        .iter()
+        .map(|run| {
+            vec![run.innovation[tap].iter().map(|&v| if v.is_finite() && v.abs() > SPIKE_SIGMA * robust_sigma { v } else { 0.0 }).collect()]
+        })
+        .collect();
+    let spike = regression::fit_through_origin(&segments, &spike_columns);
+    // Bias: a step in the innovation's mean at the most likely onset.
+    let (onset_s, columns) = bias_step(runs, tap);
+    let bias = regression::fit_through_origin(&segments, &columns);
+    let spike_explained = spike.as_ref().map_or(0.0, regression::Fit::explained_per_sample);
+    let bias_explained = bias.as_ref().map_or(0.0, regression::Fit::explained_per_sample);
+    let tau = regression::integrated_autocorrelation(&segments, 50);
+    if spike_explained > bias_explained {
+        let fit = spike?;
+        let count: usize = spike_columns.iter().map(|cols| cols[0].iter().filter(|v| **v != 0.0).count()).sum();
+        let duration_s: f64 = runs.iter().map(|run| run.len() as f64 / run.sample_hz).sum();
+        let heldout = regression::heldout_gap(&segments, &spike_columns, &[1.0], &fit.touched);
+        // A spike count the Gaussian tail explains is not a fault.
+        let expected = gaussian_tail(SPIKE_SIGMA) * runs.iter().map(RunStreams::len).sum::<usize>() as f64;
+        let delta = if (count as f64) > 3.0 * expected + 3.0 { delta_bic(&fit, tau, 1) } else { 0.0 };
+        return Some(SensorFinding {
+            name: "pressure_fault",
+            params: vec![
+                ("mode".into(), ParamValue::Text("spike".into())),
+                ("spike_rate_hz".into(), ParamValue::Number(count as f64 / duration_s.max(f64::MIN_POSITIVE))),
+            ],
+            channel: Some(name.clone()),
+            explained: if delta > 0.0 { fit.explained_per_sample() } else { 0.0 },
+            noise_var,
+            delta_bic: delta,
+            heldout,
+            evidence: format!("{name} has {count} innovations beyond {SPIKE_SIGMA} robust sigma (Gaussian tail: {expected:.1})"),
+        });
+    }
+    let fit = bias?;
+    let heldout = regression::heldout_gap(&segments, &columns, &fit.beta, &fit.touched);
+    Some(SensorFinding {
+        name: "pressure_fault",
+        params: vec![
+            ("mode".into(), ParamValue::Text("bias".into())),
+            ("value".into(), ParamValue::Number(fit.beta[0])),
+            ("start_s".into(), ParamValue::Number(onset_s)),
+        ],
+        channel: Some(name.clone()),
+        explained: fit.explained_per_sample(),
+        noise_var,
+        delta_bic: delta_bic(&fit, tau, 2),
+        heldout,
+        evidence: format!("{name}'s innovation mean steps by {:.4} at t = {onset_s:.2} s", fit.beta[0]),
+    })
+}
+
+/// Upper tail probability of `|N(0, 1)| > z`.
+fn gaussian_tail(z: f64) -> f64 {
+    // Abramowitz & Stegun 7.1.26 for erfc, plenty for a count threshold.
+    let x = z / std::f64::consts::SQRT_2;
+    let t = 1.0 / (1.0 + 0.327_591_1 * x);
+    let poly = t * (0.254_829_592 + t * (-0.284_496_736 + t * (1.421_413_741 + t * (-1.453_152_027 + t * 1.061_405_429))));
+    poly * (-x * x).exp()
+}
+
+/// 1.4826 times the median absolute deviation of the training innovations.
+fn robust_sigma(segments: &[Segment<'_>]) -> f64 {
+    let mut values: Vec<f64> = segments
+        .iter()
+        .flat_map(|segment| segment.training.clone().map(|i| segment.residual[i]))
+        .filter(|v| v.is_finite())
+        .collect();
+    if values.is_empty() {
+        return f64::INFINITY;
+    }
+    let median = quantile(&mut values, 0.5);
+    let mut deviations: Vec<f64> = values.iter().map(|v| (v - median).abs()).collect();
+    1.4826 * quantile(&mut deviations, 0.5)
+}
+
+fn quantile(values: &mut [f64], q: f64) -> f64 {
+    let k = ((values.len() - 1) as f64 * q).round() as usize;
+    *values.select_nth_unstable_by(k, f64::total_cmp).1
+}
+
+/// Start of the first stretch of at least 10 missing samples of the channel, s.
+fn first_long_gap_s(runs: &[RunStreams], tap: usize) -> f64 {
+    let mut best = f64::INFINITY;
+    for run in runs {
+        let mut length = 0;
+        for (idx, value) in run.cp[tap].iter().enumerate() {
+            length = if value.is_finite() { 0 } else { length + 1 };
+            if length == 10 {
+                best = best.min(run.t_s[idx + 1 - 10]);
+                break;
+            }
+        }
+    }
+    if best.is_finite() { best } else { 0.0 }
+}
+
+/// Longest stretch of identical finite raw readings (s) and the start of the longest, s.
+fn longest_constant_run(runs: &[RunStreams], tap: usize) -> (f64, f64) {
+    let (mut best_s, mut start_s) = (0.0, 0.0);
+    for run in runs {
+        let mut begin = 0;
+        for idx in 1..=run.len() {
+            let same = idx < run.len() && run.cp[tap][idx].is_finite() && run.cp[tap][idx] == run.cp[tap][idx - 1];
+            if !same {
+                let length_s = (idx - begin) as f64 / run.sample_hz;
+                if idx - begin > 1 && length_s > best_s {
+                    best_s = length_s;
+                    start_s = run.t_s[begin];
+                }
+                begin = idx;
+            }
+        }
+    }
+    (best_s, start_s)
+}
+
+/// The bias step: the onset (common to every run, from its start) where a step in the mean of
+/// the training innovations explains most (a CUSUM scan on a coarse grid), and its column.
+fn bias_step(runs: &[RunStreams], tap: usize) -> (f64, Vec<Vec<Vec<f64>>>) {
+    let duration_s = runs.iter().map(|run| run.t_s.last().copied().unwrap_or(0.0)).fold(0.0, f64::max);
+    let mut best = (0.0, f64::NEG_INFINITY);
+    for step in 0..40 {
+        let onset = duration_s * f64::from(step) / 40.0;
+        let (mut sum, mut count) = (0.0, 0usize);
+        for run in runs {
+            for idx in run.training.clone() {
+                let v = run.innovation[tap][idx];
+                if run.t_s[idx] >= onset && v.is_finite() {
+                    sum += v;
+                    count += 1;
+                }
+            }
+        }
+        // Explained sum of squares of a mean over the samples after the onset.
+        let explained = if count == 0 { 0.0 } else { sum * sum / count as f64 };
+        if explained > best.1 {
+            best = (onset, explained);
+        }
+    }
+    let onset = best.0;
+    let columns = runs
+        .iter()
+        .map(|run| vec![run.t_s.iter().map(|t| if *t >= onset { 1.0 } else { 0.0 }).collect()])
+        .collect();
+    (onset, columns)
+}

@@ -1,0 +1,267 @@
+//! The residual streams of a diagnosis: what the sim (the fitted models driven by the recorded
+//! inputs alone) predicts for each run, and where the recording departs from it.
+//!
+//! The balance stream is `C_l,measured - (C_l,eGK + C_l,AFC + coupling)` with every block run by
+//! estimator-core exactly as it flies, but with the pressure channels withheld: the sim is the
+//! model of the experiment, so the disturbance comes from the eGK ODE and nothing is corrected
+//! by the taps (shared/spec/diagnosis.md, "Sim"). The sensor stream is the one-step innovation
+//! of each pressure channel under the pressure model's steady-state Kalman filter (gap-diagnosis.md
+//! section 1.6), recomputed in f64 with an innovation gate so that one bad channel does not
+//! leak into the others.
+
+use std::ops::Range;
+
+use estimator_core::coeffs::{N_TAPS, PRESSURE_RANK};
+use estimator_core::plant::Plant;
+use estimator_core::{CoefficientSet, Estimator, Input};
+use firmware_sim::dataset::{Dataset, Run, RunKind};
+
+use crate::fit::signals::{differentiate, hold_missing, zero_phase_lowpass};
+use crate::fit::split::Split;
+use crate::replay::input_at;
+
+/// Corner of the zero-phase smoother applied to the roll angle before it is differentiated for
+/// the candidate regressors, Hz: above the roll motion's content (holds with ramps of a few
+/// hertz), below the encoder noise that a second derivative would amplify.
+const KINEMATICS_CORNER_HZ: f64 = 40.0;
+
+/// Corner of the smoother applied to each pressure channel before its time derivative is taken
+/// (the regressor of a tubing lag), Hz.
+const PRESSURE_CORNER_HZ: f64 = 20.0;
+
+/// Everything the diagnosis needs of one run.
+#[derive(Debug, Clone)]
+pub struct RunStreams {
+    /// The run's file, as in the manifest.
+    pub file: String,
+    /// Kind of run.
+    pub kind: RunKind,
+    /// Angle of attack, deg.
+    pub alpha_deg: f64,
+    /// Sample rate, Hz.
+    pub sample_hz: f64,
+    /// Training samples.
+    pub training: Range<usize>,
+    /// Held-out samples.
+    pub heldout: Range<usize>,
+    /// Time from the start of the run, s.
+    pub t_s: Vec<f64>,
+    /// Roll angle, rad (missing samples held).
+    pub phi_rad: Vec<f64>,
+    /// Roll rate from the smoothed angle, rad/s.
+    pub phi_dot_rad_s: Vec<f64>,
+    /// Roll acceleration from the smoothed angle, rad/s^2.
+    pub phi_ddot_rad_s2: Vec<f64>,
+    /// Port and starboard Cmu as recorded (missing samples held, never negative).
+    pub cmu: [Vec<f64>; 2],
+    /// Sim: eGK disturbance moment.
+    pub cl_egk: Vec<f64>,
+    /// Sim: plant moment of each jet.
+    pub cl_afc_side: [Vec<f64>; 2],
+    /// Sim: coupling operator's correction.
+    pub coupling: Vec<f64>,
+    /// Measured balance moment (NaN where missing).
+    pub cl_measured: Vec<f64>,
+    /// Balance residual `measured - sim` (NaN where the balance is missing).
+    pub residual: Vec<f64>,
+    /// Raw pressure channels (NaN where missing).
+    pub cp: Vec<Vec<f64>>,
+    /// One-step innovation of each pressure channel (NaN where the channel is missing).
+    pub innovation: Vec<Vec<f64>>,
+    /// Smoothed time derivative of each measured pressure channel, 1/s.
+    pub cp_dot: Vec<Vec<f64>>,
+}
+
+impl RunStreams {
+    /// Number of samples.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.t_s.len()
+    }
+
+    /// True without samples.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.t_s.is_empty()
+    }
+
+    /// The sim's total moment at each sample.
+    #[must_use]
+    pub fn cl_sim(&self) -> Vec<f64> {
+        (0..self.len()).map(|idx| self.cl_egk[idx] + self.cl_afc_side[0][idx] + self.cl_afc_side[1][idx] + self.coupling[idx]).collect()
+    }
+
+    /// The sim's plant moment (both jets).
+    #[must_use]
+    pub fn cl_afc(&self) -> Vec<f64> {
+        (0..self.len()).map(|idx| self.cl_afc_side[0][idx] + self.cl_afc_side[1][idx]).collect()
+    }
+
+    /// True when the run excites the roll motion.
+    #[must_use]
+    pub fn rolls(&self) -> bool {
+        matches!(self.kind, RunKind::Roll | RunKind::RollActuation | RunKind::Static)
+    }
+
+    /// True when the run excites the blowing.
+    #[must_use]
+    pub fn blows(&self) -> bool {
+        matches!(self.kind, RunKind::Actuation | RunKind::RollActuation | RunKind::Static)
+    }
+
+    /// Re-runs the sim's plants on other Cmu sequences (one per jet), as the core steps them.
+    #[must_use]
+    pub fn plant_response(&self, set: &CoefficientSet, cmu: &[Vec<f64>; 2]) -> Vec<f64> {
+        let alpha_rad = self.alpha_deg.to_radians() as f32;
+        let mut plants = [Plant::new(); 2];
+        (0..self.len())
+            .map(|idx| {
+                let mut total = 0.0;
+                for (side, plant) in plants.iter_mut().enumerate() {
+                    total += f64::from(plant.step(&set.plant[side], cmu[side][idx] as f32, alpha_rad).0);
+                }
+                total
+            })
+            .collect()
+    }
+}
+
+/// Builds the streams of every run.
+#[must_use]
+pub fn build(dataset: &Dataset, set: &CoefficientSet, split: &Split) -> Vec<RunStreams> {
+    use rayon::prelude::*;
+    dataset.runs.par_iter().map(|run| build_run(run, set, split)).collect()
+}
+
+fn build_run(run: &Run, set: &CoefficientSet, split: &Split) -> RunStreams {
+    let n = run.channels.len();
+    let sample_hz = run.meta.sample_hz;
+    let dt_s = 1.0 / sample_hz;
+    let t0 = run.channels.t_s.first().copied().unwrap_or(0.0);
+    let t_s: Vec<f64> = run.channels.t_s.iter().map(|t| t - t0).collect();
+
+    // The sim: the core with the pressure channels withheld.
+    let mut estimator = Estimator::new(set);
+    let (mut cl_egk, mut afc_port, mut afc_stbd, mut coupling) =
+        (Vec::with_capacity(n), Vec::with_capacity(n), Vec::with_capacity(n), Vec::with_capacity(n));
+    for idx in 0..n {
+        let input = Input { cp: [f32::NAN; N_TAPS], ..input_at(run, idx) };
+        let output = estimator.step(&input);
+        cl_egk.push(f64::from(output.cl_egk));
+        afc_port.push(f64::from(output.cl_afc_port));
+        afc_stbd.push(f64::from(output.cl_afc_stbd));
+        coupling.push(f64::from(output.coupling));
+    }
+    let cl_measured = run.channels.cl.clone();
+    let residual: Vec<f64> = (0..n)
+        .map(|idx| {
+            let measured = cl_measured[idx];
+            if measured.is_finite() { measured - (cl_egk[idx] + afc_port[idx] + afc_stbd[idx] + coupling[idx]) } else { f64::NAN }
+        })
+        .collect();
+
+    let phi_rad: Vec<f64> = hold_missing(&run.channels.phi_deg, 0.0).iter().map(|phi| phi.to_radians()).collect();
+    let smooth_phi = zero_phase_lowpass(&phi_rad, KINEMATICS_CORNER_HZ.min(0.4 * sample_hz), sample_hz);
+    let phi_dot_rad_s = central_difference(&smooth_phi, dt_s);
+    let phi_ddot_rad_s2 = central_difference(&phi_dot_rad_s, dt_s);
+    let cmu = [hold_missing(&run.channels.cmu_port, 0.0), hold_missing(&run.channels.cmu_stbd, 0.0)]
+        .map(|cmu| cmu.into_iter().map(|value| value.max(0.0)).collect::<Vec<f64>>());
+
+    let cp: Vec<Vec<f64>> = run.channels.cp.iter().map(Clone::clone).collect();
+    let innovation = innovations(run, set, dt_s);
+    let cp_dot = cp
+        .iter()
+        .map(|channel| {
+            let smooth = zero_phase_lowpass(channel, PRESSURE_CORNER_HZ.min(0.4 * sample_hz), sample_hz);
+            let mut derivative = central_difference(&smooth, dt_s);
+            for (value, raw) in derivative.iter_mut().zip(channel) {
+                if !raw.is_finite() {
+                    *value = f64::NAN;
+                }
+            }
+            derivative
+        })
+        .collect();
+
+    RunStreams {
+        file: run.meta.file.display().to_string(),
+        kind: run.meta.kind,
+        alpha_deg: run.meta.alpha_deg,
+        sample_hz,
+        training: split.training(n),
+        heldout: split.heldout(n),
+        t_s,
+        phi_rad,
+        phi_dot_rad_s,
+        phi_ddot_rad_s2,
+        cmu,
+        cl_egk,
+        cl_afc_side: [afc_port, afc_stbd],
+        coupling,
+        cl_measured,
+        residual,
+        cp,
+        innovation,
+        cp_dot,
+    }
+}
+
+/// Central difference (one-sided at the ends).
+#[must_use]
+pub fn central_difference(values: &[f64], dt_s: f64) -> Vec<f64> {
+    let n = values.len();
+    (0..n)
+        .map(|idx| match (idx.checked_sub(1), (idx + 1 < n).then_some(idx + 1)) {
+            (Some(prev), Some(next)) => (values[next] - values[prev]) / (2.0 * dt_s),
+            (None, Some(next)) => (values[next] - values[idx]) / dt_s,
+            (Some(prev), None) => (values[idx] - values[prev]) / dt_s,
+            (None, None) => 0.0,
+        })
+        .collect()
+}
+
+/// Innovation gate of the diagnosis's filter, in steady-state standard deviations: wide, so
+/// that only a gross fault (which would otherwise drag the shared modes) is kept out.
+const GATE_SIGMA: f64 = 6.0;
+
+/// The pressure filter's one-step innovations per channel, in f64: `cp - (C (A a + B u) +
+/// cp_mean)`, with the steady-state gain applied to the channels inside the gate (the core's
+/// pressure.rs, without its fault isolation so that every channel's innovation is reported).
+fn innovations(run: &Run, set: &CoefficientSet, dt_s: f64) -> Vec<Vec<f64>> {
+    let model = &set.pressure;
+    let n = run.channels.len();
+    let phi_rad: Vec<f64> = hold_missing(&run.channels.phi_deg, 0.0).iter().map(|phi| phi.to_radians()).collect();
+    let (phi_dot, _) = differentiate(&phi_rad, &set.rate_filter, dt_s);
+    let cmu = [hold_missing(&run.channels.cmu_port, 0.0), hold_missing(&run.channels.cmu_stbd, 0.0)];
+    let f = |value: f32| f64::from(value);
+    let mut modes = [0.0f64; PRESSURE_RANK];
+    let mut out = vec![Vec::with_capacity(n); N_TAPS];
+    for idx in 0..n {
+        let inputs = [phi_rad[idx], phi_dot[idx], cmu[0][idx].max(0.0), cmu[1][idx].max(0.0), 1.0];
+        let predicted: [f64; PRESSURE_RANK] = std::array::from_fn(|row| {
+            (0..PRESSURE_RANK).map(|col| f(model.a[row][col]) * modes[col]).sum::<f64>()
+                + inputs.iter().enumerate().map(|(col, u)| f(model.b[row][col]) * u).sum::<f64>()
+        });
+        let mut used = [0.0f64; N_TAPS];
+        for tap in 0..N_TAPS {
+            let measured = run.channels.cp[tap][idx];
+            if !measured.is_finite() {
+                out[tap].push(f64::NAN);
+                continue;
+            }
+            let expected = (0..PRESSURE_RANK).map(|col| f(model.c[tap][col]) * predicted[col]).sum::<f64>() + f(model.cp_mean[tap]);
+            let nu = measured - expected;
+            out[tap].push(nu);
+            if nu.abs() <= GATE_SIGMA * f(model.innovation_std[tap]).max(f64::MIN_POSITIVE) {
+                used[tap] = nu;
+            }
+        }
+        for (row, mode) in modes.iter_mut().enumerate() {
+            *mode = predicted[row] + (0..N_TAPS).map(|tap| f(model.gain[row][tap]) * used[tap]).sum::<f64>();
+            if !mode.is_finite() || mode.abs() > 1e6 {
+                *mode = 0.0;
+            }
+        }
+    }
+    out
+}
