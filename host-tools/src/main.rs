@@ -260,7 +260,23 @@ fn diagnose(args: DiagnoseArgs) -> anyhow::Result<()> {
         }
         None => None,
     };
-    let config = DiagnoseConfig { split: host_tools::fit::split::Split { holdout_fraction: args.holdout_fraction } };
+    // The model's own signature, written by `fit` beside model.bin.
+    let signature = match &args.model {
+        Some(path) => {
+            let folder = if path.is_dir() { path.clone() } else { path.parent().map(PathBuf::from).unwrap_or_default() };
+            let file = folder.join(host_tools::diagnose::SIGNATURE_FILE);
+            match std::fs::read_to_string(&file) {
+                Ok(text) => Some(serde_json::from_str(&text).with_context(|| format!("{}: not a diagnosis signature", file.display()))?),
+                Err(_) => None,
+            }
+        }
+        None => None,
+    };
+    let config = DiagnoseConfig {
+        split: host_tools::fit::split::Split { holdout_fraction: args.holdout_fraction },
+        signature,
+        heldout_only: false,
+    };
     let spinner = spinner("diagnosing".into());
     let (diagnosis, evidence) =
         diagnose(&dataset, model.as_ref().map(|(set, name)| (set, name.clone())), &config, &|stage| spinner.set_message(format!("diagnosing: {stage}")))?;
@@ -372,9 +388,12 @@ fn fit(args: FitArgs) -> anyhow::Result<()> {
         spinner.set_message(format!("fitting: {stage}"))
     })
     .with_context(|| format!("fitting {}", args.data.display()))?;
+    spinner.set_message("fitting: the model's diagnosis signature on its held-out data");
+    let signature = host_tools::diagnose::signature(&dataset, &outcome.set, config.split)
+        .with_context(|| format!("the diagnosis signature on {}", args.data.display()))?;
     spinner.set_message("writing the model folder");
     let described = format!("{} (seed {})", args.data.display(), args.seed);
-    host_tools::fit::card::write_model_folder(&args.out, &outcome, &described)?;
+    host_tools::fit::card::write_model_folder(&args.out, &outcome, &described, Some(&signature))?;
     spinner.finish_and_clear();
     print_heldout(&outcome.report);
     eprintln!("wrote {} in {:.1} s", args.out.display(), started.elapsed().as_secs_f64());

@@ -57,6 +57,45 @@ pub const CONFOUNDED_CORRELATION: f64 = 0.9;
 pub struct DiagnoseConfig {
     /// Training/held-out split of every run (the same as `fit`'s).
     pub split: Split,
+    /// The sim's own signature: what each candidate explains when the sim is compared with the
+    /// data it was fitted on (its held-out part). The sim's structural error is part of every
+    /// comparison, so evidence counts only beyond it. `None`: no signature (every candidate
+    /// starts from zero).
+    pub signature: Option<Signature>,
+    /// Analyse the held-out part only (used to take a signature).
+    pub heldout_only: bool,
+}
+
+/// What the candidates and the probe explain, and the gap per kind of run, in noise variances,
+/// when the sim is compared with data it should match: the floor below which a gap is the
+/// sim's own structural error, not an effect. `fit` writes it beside the model
+/// ([`SIGNATURE_FILE`]).
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize, serde::Deserialize)]
+pub struct Signature {
+    /// Per candidate (sensor candidates keyed `name:channel`), explained mean square over the
+    /// noise variance.
+    pub explained_to_noise: BTreeMap<String, f64>,
+    /// What the structure probe explains of the residual, over the noise variance.
+    pub probe_to_noise: f64,
+    /// Gap beyond noise per kind of run (mean square over the noise variance).
+    pub gap_to_noise_by_kind: BTreeMap<String, f64>,
+}
+
+/// File name of a model's signature in its folder.
+pub const SIGNATURE_FILE: &str = "diagnosis-signature.json";
+
+impl Signature {
+    fn of(&self, key: &str) -> f64 {
+        self.explained_to_noise.get(key).copied().unwrap_or(0.0)
+    }
+}
+
+/// The signature of `set` on `dataset` (the data it was fitted on): every candidate measured on
+/// the held-out part of every run.
+pub fn signature(dataset: &Dataset, set: &CoefficientSet, split: Split) -> Result<Signature, DiagnoseError> {
+    let config = DiagnoseConfig { split, signature: None, heldout_only: true };
+    let (diagnosis, _) = diagnose(dataset, Some((set, "signature".into())), &config, &|_| {})?;
+    Ok(diagnosis.signature)
 }
 
 /// Why a diagnosis failed.
@@ -100,7 +139,7 @@ pub fn diagnose(
         }
     };
     progress("running the sim on the recorded inputs");
-    let runs = streams::build(dataset, &set, &config.split);
+    let runs = streams::build(dataset, &set, &config.split, config.heldout_only);
     let context = Context {
         set: &set,
         moment_scale_nm: dataset.tunnel.dynamic_pressure_pa() * dataset.wing.area_m2 * dataset.wing.span_m,
@@ -115,7 +154,10 @@ pub fn diagnose(
     let noise_var = regression::difference_noise_var(&base_segments, None);
     let autocorrelation_time = regression::integrated_autocorrelation(&base_segments, 200);
     let min_explained = MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE * noise_var;
-    let first_round = profile_all(&runs, &residuals, &context, autocorrelation_time);
+    let first_round = profile_all(&runs, &residuals, &context, autocorrelation_time, noise_var, config.signature.as_ref());
+    let to_noise = |value: f64| value / noise_var.max(f64::MIN_POSITIVE);
+    let floor = config.signature.clone().unwrap_or_default();
+    let excess = |p: &Profiled| to_noise(p.explained()) - floor.of(p.candidate.name());
 
     // Forward selection: name the best qualifying candidate, subtract it, repeat on the rest.
     let mut named: Vec<Profiled> = Vec::new();
@@ -125,44 +167,72 @@ pub fn diagnose(
         let Some(best) = round.iter().find(|p| !named.iter().any(|n| n.candidate == p.candidate)).cloned() else {
             break;
         };
-        if !qualifies(&best, min_explained) {
+        if !(best.delta_bic >= MIN_DELTA_BIC && excess(&best) >= min_explained / noise_var.max(f64::MIN_POSITIVE) && best.heldout.shrink() > 0.0) {
             break;
         }
         remainder = attribution::subtract(&best, &runs, &remainder, &context);
         named.push(best);
-        round = profile_all(&runs, &remainder, &context, autocorrelation_time);
+        round = profile_all(&runs, &remainder, &context, autocorrelation_time, noise_var, config.signature.as_ref());
     }
 
     progress("probing the remainder and the pressure channels");
-    let remainder_segments = attribution::segments(&runs, &remainder);
-    let probe = regression::fit(&remainder_segments, &attribution::probe_columns(&runs));
-    let probe_explained = probe.as_ref().map_or(0.0, regression::Fit::explained_per_sample);
+    let probe_of = |residuals: &[Vec<f64>]| {
+        let segments = attribution::segments(&runs, residuals);
+        regression::fit(&segments, &attribution::probe_columns(&runs)).map_or(0.0, |fit| fit.explained_per_sample())
+    };
+    let probe_base = to_noise(probe_of(&residuals));
+    let probe_explained = if named.is_empty() { probe_base } else { to_noise(probe_of(&remainder)) };
     let sensor = sensor::findings(&runs);
-    let sensor_named: Vec<&SensorFinding> = sensor
+    let sensor_excess = |f: &SensorFinding| {
+        let key = format!("{}:{}", f.name, f.channel.as_deref().unwrap_or("all"));
+        f.explained / f.noise_var.max(f64::MIN_POSITIVE) - floor.of(&key)
+    };
+    let min_ratio = MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE;
+    let mut sensor_ranked: Vec<&SensorFinding> = sensor
         .iter()
-        .filter(|f| {
-            f.explained >= MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE * f.noise_var
-                && f.delta_bic >= MIN_DELTA_BIC
-                && (f.heldout.n == 0 || f.heldout.shrink() > 0.0)
-        })
-        .take(1)
+        .filter(|f| sensor_excess(f) >= min_ratio && f.delta_bic >= MIN_DELTA_BIC && (f.heldout.n == 0 || f.heldout.shrink() > 0.0))
         .collect();
+    sensor_ranked.sort_by(|a, b| sensor_excess(b).total_cmp(&sensor_excess(a)));
+    let sensor_named: Vec<&SensorFinding> = sensor_ranked.into_iter().take(1).collect();
 
-    // The gap as it stands, on every run's held-out part.
+    // The gap as it stands, on every run's held-out part, and per kind beyond the signature.
     let all_touched = vec![true; runs.len()];
     let gap = regression::heldout_gap(&base_segments, &vec![Vec::new(); runs.len()], &[], &all_touched);
+    let mut gap_by_kind: BTreeMap<String, (f64, usize)> = BTreeMap::new();
+    for (idx, run) in runs.iter().enumerate() {
+        let one = [base_segments[idx].clone()];
+        let g = regression::heldout_gap(&one, &[Vec::new()], &[], &[true]);
+        let slot = gap_by_kind.entry(run.kind.as_str().to_owned()).or_default();
+        slot.0 += to_noise(g.mse_before - g.noise_var) * g.n as f64;
+        slot.1 += g.n;
+    }
+    let gap_by_kind: BTreeMap<String, f64> =
+        gap_by_kind.into_iter().map(|(kind, (sum, n))| (kind, if n == 0 { 0.0 } else { sum / n as f64 })).collect();
     let excess_runs: Vec<usize> = (0..runs.len())
         .filter(|&idx| {
+            let kind = runs[idx].kind.as_str();
             let one = [base_segments[idx].clone()];
             let g = regression::heldout_gap(&one, &[Vec::new()], &[], &[true]);
-            g.mse_before - g.noise_var >= min_explained
+            to_noise(g.mse_before - g.noise_var) - floor.gap_to_noise_by_kind.get(kind).copied().unwrap_or(0.0) >= min_ratio
         })
         .collect();
+    let own_signature = Signature {
+        explained_to_noise: first_round
+            .iter()
+            .map(|p| (p.candidate.name().to_owned(), to_noise(p.explained())))
+            .chain(sensor.iter().map(|f| {
+                (format!("{}:{}", f.name, f.channel.as_deref().unwrap_or("all")), f.explained.min(1e12) / f.noise_var.max(f64::MIN_POSITIVE))
+            }))
+            .collect(),
+        probe_to_noise: probe_base,
+        gap_to_noise_by_kind: gap_by_kind,
+    };
 
-    let balance_strength = named.first().map_or(0.0, |p| p.explained() / noise_var.max(f64::MIN_POSITIVE));
-    let sensor_strength = sensor_named.first().map_or(0.0, |f| sensor::strength(f));
-    let remainder_structured =
-        named.first().is_some_and(|top| probe_explained >= min_explained.max(MAX_REMAINDER_SHARE * top.explained()));
+    let balance_strength = named.first().map_or(0.0, |p| excess(p));
+    let sensor_strength = sensor_named.first().map_or(0.0, |f| sensor_excess(f));
+    let remainder_structured = named
+        .first()
+        .is_some_and(|top| probe_explained - floor.probe_to_noise >= min_ratio.max(MAX_REMAINDER_SHARE * excess(top)));
 
     let mut effects = Vec::new();
     let mut where_ = Where::default();
@@ -196,10 +266,10 @@ pub fn diagnose(
         where_.alpha_deg = alphas(&runs, &touched);
         where_.runs = excess_runs.iter().map(|&idx| runs[idx].file.clone()).collect();
         unexplained = Some(Unexplained {
-            description: describe_structure(&runs, &excess_runs, probe.as_ref(), &first_round, noise_var),
+            description: describe_structure(&runs, &excess_runs, probe_explained - floor.probe_to_noise, first_round.first().map(|p| (p.candidate.name(), excess(p)))),
             best_candidate: first_round.first().map(|p| p.candidate.name().to_owned()),
-            best_candidate_explained_to_noise: first_round.first().map_or(0.0, |p| p.explained() / noise_var.max(f64::MIN_POSITIVE)),
-            probe_explained_to_noise: probe_explained / noise_var.max(f64::MIN_POSITIVE),
+            best_candidate_explained_to_noise: first_round.first().map_or(0.0, excess),
+            probe_explained_to_noise: probe_explained - floor.probe_to_noise,
         });
     } else {
         verdict = Verdict::None;
@@ -226,6 +296,7 @@ pub fn diagnose(
         split: config.split.describe(),
         noise_var_training: finite(noise_var),
         autocorrelation_time_samples: finite(autocorrelation_time),
+        signature: own_signature,
         elapsed_s: clock.elapsed().as_secs_f64(),
     };
     Ok((diagnosis, Evidence { runs, first_round, named, remainder }))
@@ -244,22 +315,25 @@ pub struct Evidence {
     pub remainder: Vec<Vec<f64>>,
 }
 
+/// Every balance candidate profiled on `residuals`, ranked by what it explains beyond the sim's
+/// signature (in noise variances).
 fn profile_all(
     runs: &[streams::RunStreams],
     residuals: &[Vec<f64>],
     context: &Context<'_>,
     autocorrelation_time: f64,
+    noise_var: f64,
+    signature: Option<&Signature>,
 ) -> Vec<Profiled> {
     let mut all: Vec<Profiled> = Candidate::ALL
         .iter()
         .filter_map(|&candidate| attribution::profile(candidate, runs, residuals, context, autocorrelation_time))
         .collect();
-    all.sort_by(|a, b| b.delta_bic.total_cmp(&a.delta_bic));
+    let score = |p: &Profiled| {
+        p.explained() / noise_var.max(f64::MIN_POSITIVE) - signature.map_or(0.0, |s| s.of(p.candidate.name()))
+    };
+    all.sort_by(|a, b| score(b).total_cmp(&score(a)));
     all
-}
-
-fn qualifies(profiled: &Profiled, min_explained: f64) -> bool {
-    profiled.delta_bic >= MIN_DELTA_BIC && profiled.explained() >= min_explained && profiled.heldout.shrink() > 0.0
 }
 
 fn finite(value: f64) -> f64 {
@@ -330,16 +404,13 @@ fn sensor_effect(finding: &SensorFinding) -> EffectResult {
 fn describe_structure(
     runs: &[streams::RunStreams],
     excess_runs: &[usize],
-    probe: Option<&regression::Fit>,
-    first_round: &[Profiled],
-    noise_var: f64,
+    probe_share: f64,
+    best: Option<(&str, f64)>,
 ) -> String {
     let kinds: Vec<String> =
         excess_runs.iter().map(|&idx| format!("{} ({} at {} deg)", runs[idx].file, runs[idx].kind.as_str(), runs[idx].alpha_deg)).collect();
-    let probe_share = probe.map_or(0.0, |fit| fit.explained_per_sample() / noise_var.max(f64::MIN_POSITIVE));
-    let best = first_round
-        .first()
-        .map(|p| format!("; the best candidate, {}, explains {:.2} noise variances", p.candidate.name(), p.explained() / noise_var.max(f64::MIN_POSITIVE)))
+    let best = best
+        .map(|(name, excess)| format!("; the best candidate, {name}, explains {excess:.2} noise variances beyond the sim's signature"))
         .unwrap_or_default();
     format!(
         "a gap above the noise floor in {} with no candidate that explains it{best}; a generic probe (odd powers of the roll angle, rate nonlinearity, slowly varying gain on the moment) finds {:.2} noise variances of structure",

@@ -64,6 +64,9 @@ pub struct Diagnosis {
     pub noise_var_training: f64,
     /// Integrated autocorrelation time of the balance residual, samples.
     pub autocorrelation_time_samples: f64,
+    /// This comparison's signature (what every candidate explains, in noise variances): the
+    /// floor for later diagnoses when the data is the sim's own.
+    pub signature: super::Signature,
     /// Wall time of the diagnosis, s.
     pub elapsed_s: f64,
 }

@@ -126,11 +126,22 @@ impl RunStreams {
     }
 }
 
-/// Builds the streams of every run.
+/// Builds the streams of every run. With `heldout_only`, the held-out part of every run is also its training part (the model's
+/// own signature on data it was not fitted on, [`super::Signature`]).
 #[must_use]
-pub fn build(dataset: &Dataset, set: &CoefficientSet, split: &Split) -> Vec<RunStreams> {
+pub fn build(dataset: &Dataset, set: &CoefficientSet, split: &Split, heldout_only: bool) -> Vec<RunStreams> {
     use rayon::prelude::*;
-    dataset.runs.par_iter().map(|run| build_run(run, set, split)).collect()
+    dataset
+        .runs
+        .par_iter()
+        .map(|run| {
+            let mut streams = build_run(run, set, split);
+            if heldout_only {
+                streams.training = streams.heldout.clone();
+            }
+            streams
+        })
+        .collect()
 }
 
 fn build_run(run: &Run, set: &CoefficientSet, split: &Split) -> RunStreams {

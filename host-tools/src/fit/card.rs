@@ -24,8 +24,15 @@ struct ModelJson<'a> {
     coefficients: String,
 }
 
-/// Writes the model folder `dir` completely or not at all.
-pub fn write_model_folder(dir: &Path, outcome: &FitOutcome, dataset: &str) -> Result<(), ModelError> {
+/// Writes the model folder `dir` completely or not at all; with a `signature`, also the
+/// diagnosis signature of the model on its own held-out data (`diagnose` reads it).
+pub fn write_model_folder(
+    dir: &Path,
+    outcome: &FitOutcome,
+    dataset: &str,
+    signature: Option<&crate::diagnose::Signature>,
+) -> Result<(), ModelError> {
+    let signature = signature.map(|s| serde_json::to_string_pretty(s).unwrap_or_default());
     let blob =
         crate::model::encode(&outcome.set).map_err(|error| ModelError::Blob { path: dir.join(BLOB_FILE), error })?;
     let json = ModelJson { dataset, report: &outcome.report, coefficients: format!("{:?}", outcome.set) };
@@ -39,6 +46,9 @@ pub fn write_model_folder(dir: &Path, outcome: &FitOutcome, dataset: &str) -> Re
         write(BLOB_FILE, &blob)?;
         write("model.json", json.as_bytes())?;
         write("model.md", card.as_bytes())?;
+        if let Some(signature) = &signature {
+            write(crate::diagnose::SIGNATURE_FILE, signature.as_bytes())?;
+        }
         for (name, plot) in &plots {
             write(name, plot.as_bytes())?;
         }

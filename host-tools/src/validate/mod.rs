@@ -27,7 +27,7 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::diagnose::{DiagnoseConfig, diagnose};
+use crate::diagnose::{DiagnoseConfig, Signature, diagnose};
 use crate::fit::pipeline::{FitConfig, fit_dataset};
 
 /// Classes of case, in the order cases cycle through them.
@@ -120,7 +120,7 @@ pub struct CaseRecord {
 
 /// Runs the campaign; `progress` is called once per finished case.
 pub fn run_campaign(config: &CampaignConfig, progress: &(dyn Fn() + Sync)) -> Vec<CaseRecord> {
-    let models: Mutex<HashMap<u64, CoefficientSet>> = Mutex::new(HashMap::new());
+    let models: Models = Mutex::new(HashMap::new());
     let classes: Vec<&str> = if config.classes.is_empty() {
         CLASSES.to_vec()
     } else {
@@ -147,23 +147,31 @@ fn base_scenario(config: &CampaignConfig, alpha_deg: f64, seed: u64) -> Scenario
 
 /// The model of a case: fitted on a clean recording at the case's angle of attack (one per
 /// angle, shared by the cases that draw it).
-fn clean_model(config: &CampaignConfig, alpha_deg: f64, models: &Mutex<HashMap<u64, CoefficientSet>>) -> Option<CoefficientSet> {
+///
+/// The clean recording is twice as long as a case's, so that the model's diagnosis signature
+/// (taken on its held-out part, as `fit` does) rests on as many samples as a case's training part.
+fn clean_model(config: &CampaignConfig, alpha_deg: f64, models: &Models) -> Option<(CoefficientSet, Signature)> {
     let key = alpha_deg.to_bits();
-    if let Some(set) = models.lock().ok()?.get(&key) {
-        return Some(*set);
+    if let Some(entry) = models.lock().ok()?.get(&key) {
+        return Some(entry.clone());
     }
-    let scenario = base_scenario(config, alpha_deg, mix_seed(config.seed, 0xC1EA_0000 + key % 1000));
+    let mut scenario = base_scenario(config, alpha_deg, mix_seed(config.seed, 0xC1EA_0000 + key % 1000));
+    scenario.duration_s *= 2.0;
     let dataset = scenario.simulate(&|| {}).ok()?;
     let set = fit_dataset(&dataset, &FitConfig::default(), &|_| {}).ok()?.set;
-    models.lock().ok()?.insert(key, set);
-    Some(set)
+    let signature = crate::diagnose::signature(&dataset, &set, FitConfig::default().split).ok()?;
+    models.lock().ok()?.insert(key, (set, signature.clone()));
+    Some((set, signature))
 }
+
+/// Clean models and their signatures, per angle of attack.
+type Models = Mutex<HashMap<u64, (CoefficientSet, Signature)>>;
 
 fn run_case(
     config: &CampaignConfig,
     id: usize,
     class: &str,
-    models: &Mutex<HashMap<u64, CoefficientSet>>,
+    models: &Models,
 ) -> Option<CaseRecord> {
     let mut rng = ChaCha8Rng::seed_from_u64(mix_seed(config.seed, 7_000 + id as u64));
     let alpha_deg = config.alphas_deg[rng.random_range(0..config.alphas_deg.len())];
@@ -171,7 +179,7 @@ fn run_case(
     let target_ratio = if class == "none" { 0.0 } else { (low.ln() + rng.random::<f64>() * (high / low).ln()).exp() };
     let case_seed = mix_seed(config.seed, 9_000 + id as u64);
     let base = base_scenario(config, alpha_deg, case_seed);
-    let set = clean_model(config, alpha_deg, models)?;
+    let (set, signature) = clean_model(config, alpha_deg, models)?;
     let clean = base.simulate(&|| {}).ok()?;
     let (effects, truth_channel) = draw_effect(class, &base, &mut rng);
     let (effects, ratio) = calibrate(class, &base, &clean, effects, target_ratio)?;
@@ -182,7 +190,8 @@ fn run_case(
     let truth = format!("{effects:?}");
     let truth_sha256 = score::sha256_hex(truth.as_bytes());
     let clock = Instant::now();
-    let outcome = diagnose(&real, Some((&set, "fitted on a clean recording".into())), &DiagnoseConfig::default(), &|_| {});
+    let diagnose_config = DiagnoseConfig { signature: Some(signature), ..DiagnoseConfig::default() };
+    let outcome = diagnose(&real, Some((&set, "fitted on a clean recording".into())), &diagnose_config, &|_| {});
     let diagnosis_s = clock.elapsed().as_secs_f64();
     let (verdict, named, named_channel, shrink) = match outcome {
         Ok((diagnosis, _)) => (
