@@ -62,6 +62,9 @@ struct ValidateArgs {
     /// Only these classes (comma-separated: none, effect names).
     #[arg(long, value_delimiter = ',')]
     classes: Vec<String>,
+    /// Keep every case's recording, model and signature in this folder (to rerun `diagnose`).
+    #[arg(long)]
+    keep: Option<PathBuf>,
 }
 
 #[derive(Debug, clap::Args)]
@@ -304,7 +307,7 @@ fn diagnose(args: DiagnoseArgs) -> anyhow::Result<()> {
 fn validate_diagnosis(args: ValidateArgs) -> anyhow::Result<()> {
     use host_tools::validate::{CampaignConfig, run_campaign, score};
     let started = Instant::now();
-    let config = CampaignConfig { cases: args.cases, seed: args.seed, duration_s: args.duration_s, classes: args.classes, ..CampaignConfig::default() };
+    let config = CampaignConfig { cases: args.cases, seed: args.seed, duration_s: args.duration_s, classes: args.classes, keep: args.keep, ..CampaignConfig::default() };
     let progress = progress_bar(args.cases as u64, "diagnosing blind cases");
     let records = run_campaign(&config, &|| progress.inc(1));
     progress.finish_and_clear();

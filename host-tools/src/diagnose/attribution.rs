@@ -63,7 +63,7 @@ pub fn profile(
         .par_iter()
         .filter_map(|hyper| {
             let columns = all_columns(candidate, hyper, runs, context);
-            regression::fit(&segments, &columns).map(|fit| (hyper.clone(), fit))
+            regression::fit_through_origin(&segments, &columns).map(|fit| (hyper.clone(), fit))
         })
         .collect();
     let profile = fits.iter().map(|(hyper, fit)| (hyper.first().map_or(0.0, |(_, v)| *v), fit.ssr)).collect();
@@ -72,6 +72,12 @@ pub fn profile(
     let heldout = regression::heldout_gap(&segments, &columns, &fit.beta, &fit.touched);
     let k = candidate.n_columns(runs.len()) + hyper.len();
     let delta_bic = delta_bic(&fit, autocorrelation_time, k);
+    if std::env::var_os("DIAG_DEBUG").is_some() {
+        eprintln!(
+            "{:<18} {:?} beta {:?} heldout before {:.3e} after {:.3e} noise {:.3e} explained {:.3e}",
+            candidate.name(), hyper, fit.beta, heldout.mse_before, heldout.mse_after, heldout.noise_var, fit.explained_per_sample()
+        );
+    }
     Some(Profiled { candidate, hyper, fit, delta_bic, profile, heldout })
 }
 

@@ -51,7 +51,8 @@ pub enum Candidate {
     ActuatorLag,
     /// `inertial_tare`: `-I phi_ddot / (q S b)` left in the balance.
     InertialTare,
-    /// `gravity_tare`: `m g d (sin(phi + phase) - sin(phase)) / (q S b)`.
+    /// `gravity_tare`: `m g d sin(phi + phase) / (q S b)` (the weight moment about the roll axis,
+    /// with the offset it leaves at `phi = 0`).
     GravityTare,
     /// `roll_damping`: `C_l,p p_hat`.
     RollDamping,
@@ -156,8 +157,8 @@ impl Candidate {
     #[must_use]
     pub fn n_columns(self, n_runs: usize) -> usize {
         match self {
-            Self::ActuatorDelay | Self::ActuatorLag | Self::InertialTare | Self::RollDamping | Self::VortexLag => 1,
-            Self::GravityTare | Self::BalanceResonance | Self::Recalibration => 2,
+            Self::ActuatorDelay | Self::ActuatorLag | Self::InertialTare | Self::RollDamping => 1,
+            Self::GravityTare | Self::BalanceResonance | Self::Recalibration | Self::VortexLag => 2,
             Self::Coupling => 4,
             Self::BiasDrift => 2 * n_runs,
         }
@@ -221,24 +222,31 @@ pub fn columns(
         Candidate::InertialTare => vec![run.phi_ddot_rad_s2.clone()],
         Candidate::GravityTare => vec![
             run.phi_rad.iter().map(|phi| phi.sin()).collect(),
-            run.phi_rad.iter().map(|phi| phi.cos() - 1.0).collect(),
+            run.phi_rad.iter().map(|phi| phi.cos()).collect(),
         ],
         Candidate::RollDamping => {
             vec![run.phi_dot_rad_s.iter().map(|rate| rate * context.half_span_time_s).collect()]
         }
         Candidate::VortexLag => {
-            vec![difference(&first_order_lag(&run.cl_egk, value("tau_s"), dt_s), &run.cl_egk)]
+            // A slower state in the moment (through the eGK's own map) and in the kinematics
+            // that drive it (gap-diagnosis.md section 4.2, G9: LP_tau[phi] - phi).
+            let tau_s = value("tau_s");
+            vec![
+                difference(&first_order_lag(&run.cl_egk, tau_s, dt_s), &run.cl_egk),
+                difference(&first_order_lag(&run.phi_rad, tau_s, dt_s), &run.phi_rad),
+            ]
         }
         Candidate::Coupling => {
+            // First-order interaction: the blowing (differential and total, scaled) times the
+            // disturbance's own variables (its moment and the roll angle).
             let cmu_ref = context.cmu_ref.max(f64::MIN_POSITIVE);
-            let afc = run.cl_afc();
             let differential: Vec<f64> = (0..n).map(|idx| (run.cmu[0][idx] - run.cmu[1][idx]) / cmu_ref).collect();
             let total: Vec<f64> = (0..n).map(|idx| (run.cmu[0][idx] + run.cmu[1][idx]) / cmu_ref).collect();
             vec![
                 (0..n).map(|idx| run.cl_egk[idx] * differential[idx]).collect(),
                 (0..n).map(|idx| run.cl_egk[idx] * total[idx]).collect(),
-                (0..n).map(|idx| afc[idx] * run.phi_rad[idx]).collect(),
-                (0..n).map(|idx| afc[idx] * run.phi_rad[idx].abs()).collect(),
+                (0..n).map(|idx| run.phi_rad[idx] * differential[idx]).collect(),
+                (0..n).map(|idx| run.phi_rad[idx] * total[idx]).collect(),
             ]
         }
         Candidate::BalanceResonance => {

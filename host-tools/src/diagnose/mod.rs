@@ -249,7 +249,7 @@ pub fn diagnose(
         verdict = Verdict::Effect;
         let mut cumulative = residuals.clone();
         for profiled in &named {
-            effects.push(balance_effect(profiled, &runs, &cumulative, &context));
+            effects.push(balance_effect(profiled, &runs, &cumulative, &context, &floor));
             cumulative = attribution::subtract(profiled, &runs, &cumulative, &context);
         }
         for finding in &sensor_named {
@@ -282,6 +282,12 @@ pub fn diagnose(
             heldout_rms: finite(gap.gap_before()),
             noise_rms: finite(gap.noise_var.sqrt()),
             heldout_raw_rms: finite(gap.mse_before.sqrt()),
+            floor_rms: finite(
+                (floor.gap_to_noise_by_kind.values().copied().sum::<f64>().max(0.0)
+                    / floor.gap_to_noise_by_kind.len().max(1) as f64
+                    * gap.noise_var)
+                    .sqrt(),
+            ),
             stream: if matches!(where_.block.as_deref(), Some("sensor")) { "pressure" } else { "balance" }.into(),
         },
         where_,
@@ -315,8 +321,7 @@ pub struct Evidence {
     pub remainder: Vec<Vec<f64>>,
 }
 
-/// Every balance candidate profiled on `residuals`, ranked by what it explains beyond the sim's
-/// signature (in noise variances).
+/// Every balance candidate profiled on `residuals`, ranked by its complexity-penalised evidence.
 fn profile_all(
     runs: &[streams::RunStreams],
     residuals: &[Vec<f64>],
@@ -329,10 +334,10 @@ fn profile_all(
         .iter()
         .filter_map(|&candidate| attribution::profile(candidate, runs, residuals, context, autocorrelation_time))
         .collect();
-    let score = |p: &Profiled| {
-        p.explained() / noise_var.max(f64::MIN_POSITIVE) - signature.map_or(0.0, |s| s.of(p.candidate.name()))
-    };
-    all.sort_by(|a, b| score(b).total_cmp(&score(a)));
+    // Ranked by the evidence itself; the signature's floor decides only whether the leader
+    // qualifies (subtracting floors measured on other data would add their noise to the ranking).
+    let _ = (noise_var, signature);
+    all.sort_by(|a, b| b.delta_bic.total_cmp(&a.delta_bic));
     all
 }
 
@@ -352,10 +357,20 @@ fn balance_effect(
     runs: &[streams::RunStreams],
     residuals: &[Vec<f64>],
     context: &Context<'_>,
+    floor: &Signature,
 ) -> EffectResult {
     let segments = attribution::segments(runs, residuals);
     let columns = attribution::all_columns(profiled.candidate, &profiled.hyper, runs, context);
-    let gap = regression::heldout_gap(&segments, &columns, &profiled.fit.beta, &profiled.fit.touched);
+    let mut gap = regression::heldout_gap(&segments, &columns, &profiled.fit.beta, &profiled.fit.touched);
+    // The sim's own floor over the touched runs' held-out samples, by kind of run.
+    let (mut floor_sum, mut count) = (0.0, 0usize);
+    for (run, touched) in runs.iter().zip(&profiled.fit.touched) {
+        if *touched {
+            floor_sum += floor.gap_to_noise_by_kind.get(run.kind.as_str()).copied().unwrap_or(0.0).max(0.0) * run.heldout.len() as f64;
+            count += run.heldout.len();
+        }
+    }
+    gap.floor_var = if count == 0 { 0.0 } else { floor_sum / count as f64 * gap.noise_var };
     EffectResult {
         name: profiled.candidate.name().into(),
         block: profiled.candidate.block().name().into(),

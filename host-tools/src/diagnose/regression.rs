@@ -147,19 +147,23 @@ pub struct HeldoutGap {
     pub noise_var: f64,
     /// Samples.
     pub n: usize,
+    /// Mean square of the sim's own structural gap over these samples (from its signature; 0
+    /// without one): a floor no added effect can remove.
+    pub floor_var: f64,
 }
 
 impl HeldoutGap {
-    /// Gap RMS beyond the noise floor, before: `sqrt(max(MSE - sigma^2, 0))`.
+    /// Gap RMS beyond the noise and the sim's own floor, before: `sqrt(max(MSE - sigma^2 -
+    /// floor, 0))`.
     #[must_use]
     pub fn gap_before(&self) -> f64 {
-        (self.mse_before - self.noise_var).max(0.0).sqrt()
+        (self.mse_before - self.noise_var - self.floor_var).max(0.0).sqrt()
     }
 
-    /// Gap RMS beyond the noise floor, after.
+    /// Gap RMS beyond the noise and the floor, after.
     #[must_use]
     pub fn gap_after(&self) -> f64 {
-        (self.mse_after - self.noise_var).max(0.0).sqrt()
+        (self.mse_after - self.noise_var - self.floor_var).max(0.0).sqrt()
     }
 
     /// `1 - gap_after / gap_before` (0 without a gap).
@@ -199,7 +203,7 @@ pub fn heldout_gap(segments: &[Segment<'_>], columns: &[Vec<Vec<f64>>], beta: &[
         }
     }
     let mean = |sum: f64, count: usize| if count == 0 { 0.0 } else { sum / count as f64 };
-    HeldoutGap { mse_before: mean(before, n), mse_after: mean(after, n), noise_var: 0.5 * mean(diff_sq, n_diff), n }
+    HeldoutGap { mse_before: mean(before, n), mse_after: mean(after, n), noise_var: 0.5 * mean(diff_sq, n_diff), n, floor_var: 0.0 }
 }
 
 /// Noise variance of a stream from first differences over the training samples (von Neumann):

@@ -80,6 +80,9 @@ pub struct Gap {
     pub noise_rms: f64,
     /// RMS of the residual itself.
     pub heldout_raw_rms: f64,
+    /// RMS of the sim's own structural gap on the data it was fitted on (its signature, mean
+    /// over kinds of run; 0 without a signature). Named effects' gaps are counted beyond it.
+    pub floor_rms: f64,
     /// `balance` (C_l units) or `pressure` (Cp units).
     pub stream: String,
 }
@@ -119,7 +122,7 @@ pub struct EffectResult {
     pub block: String,
     /// Physical parameters fitted on the training part.
     pub params: BTreeMap<String, serde_json::Value>,
-    /// Held-out gap RMS before the effect is added (beyond noise).
+    /// Held-out gap RMS before the effect is added, beyond the noise and the sim's own floor.
     pub heldout_rms_before: f64,
     /// Held-out gap RMS with the effect added.
     pub heldout_rms_after: f64,
@@ -232,7 +235,7 @@ pub fn physical_params(profiled: &Profiled, context: &Context<'_>) -> BTreeMap<S
             out.insert("ixx_kgm2".into(), -b(0) * context.moment_scale_nm);
         }
         Candidate::GravityTare => {
-            // m g d (sin(phi + p) - sin p) = m g d cos p sin(phi) + m g d sin p (cos(phi) - 1).
+            // m g d sin(phi + p) = m g d cos p sin(phi) + m g d sin p cos(phi).
             let moment_nm = context.moment_scale_nm * b(0).hypot(b(1));
             out.insert("weight_moment_nm".into(), moment_nm);
             out.insert("mass_offset_kgm".into(), moment_nm / G_MPS2);
@@ -243,9 +246,10 @@ pub fn physical_params(profiled: &Profiled, context: &Context<'_>) -> BTreeMap<S
         }
         Candidate::VortexLag => {
             out.insert("weight".into(), b(0));
+            out.insert("kinematic_weight".into(), b(1));
         }
         Candidate::Coupling => {
-            for (idx, name) in ["egk_x_differential_cmu", "egk_x_total_cmu", "afc_x_phi", "afc_x_abs_phi"].iter().enumerate() {
+            for (idx, name) in ["egk_x_differential_cmu", "egk_x_total_cmu", "phi_x_differential_cmu", "phi_x_total_cmu"].iter().enumerate() {
                 out.insert((*name).into(), b(idx));
             }
         }

@@ -75,64 +75,106 @@ fn segments_of(runs: &[RunStreams], tap: usize) -> Vec<Segment<'_>> {
         .collect()
 }
 
+/// Time constants of the lag candidate, s: a log grid from two samples to half a second.
+fn lag_grid(sample_hz: f64) -> Vec<f64> {
+    super::candidates::log_grid(2.0 / sample_hz, 0.5, 28)
+}
+
+/// The lag column of one channel: `LP_tau[expected] - expected`, with `expected` the filter's
+/// one-step expectation of the channel (measured minus innovation): a lagged sensor reads the
+/// expected pressure through its lag (gap-diagnosis.md section 2.6, the first-order form).
+fn lag_column(run: &RunStreams, tap: usize, tau_s: f64) -> Vec<f64> {
+    let expected: Vec<f64> = run.cp[tap].iter().zip(&run.innovation[tap]).map(|(cp, nu)| cp - nu).collect();
+    let held = crate::fit::signals::hold_missing(&expected, expected.iter().copied().find(|v| v.is_finite()).unwrap_or(0.0));
+    let lagged = super::candidates::first_order_lag(&held, tau_s, 1.0 / run.sample_hz);
+    lagged.iter().zip(&held).map(|(l, e)| l - e).collect()
+}
+
 /// The lag candidate: all channels with one time constant, or the single channel that gains
-/// most; whichever has the better complexity-penalised evidence.
+/// most; whichever has the better complexity-penalised evidence. The time constant is profiled.
 fn lag_findings(runs: &[RunStreams], n_taps: usize) -> Vec<SensorFinding> {
-    let mut per_channel = Vec::new();
-    let (mut pooled_segments, mut pooled_columns) = (Vec::new(), Vec::new());
-    for tap in 0..n_taps {
-        let segments = segments_of(runs, tap);
-        let columns: Vec<Vec<Vec<f64>>> = runs.iter().map(|run| vec![clean(&run.cp_dot[tap])]).collect();
-        if let Some(fit) = regression::fit(&segments, &columns) {
-            per_channel.push((tap, fit, segments.clone(), columns.clone()));
-        }
-        pooled_segments.extend(segments);
-        pooled_columns.extend(columns);
-    }
+    let Some(sample_hz) = runs.first().map(|run| run.sample_hz) else {
+        return Vec::new();
+    };
+    let grid = lag_grid(sample_hz);
+    // Per channel and grid point: the fit.
+    let per_tau: Vec<Vec<Option<regression::Fit>>> = grid
+        .iter()
+        .map(|&tau_s| {
+            (0..n_taps)
+                .map(|tap| {
+                    let segments = segments_of(runs, tap);
+                    let columns: Vec<Vec<Vec<f64>>> = runs.iter().map(|run| vec![lag_column(run, tap, tau_s)]).collect();
+                    regression::fit_through_origin(&segments, &columns)
+                })
+                .collect()
+        })
+        .collect();
     let mut out = Vec::new();
-    if let Some(fit) = regression::fit(&pooled_segments, &pooled_columns) {
-        let noise_var = regression::difference_noise_var(&pooled_segments, None);
-        let tau = regression::integrated_autocorrelation(&pooled_segments, 50);
-        let heldout = regression::heldout_gap(&pooled_segments, &pooled_columns, &fit.beta, &fit.touched);
-        let tau_s = -fit.beta[0];
-        out.push(SensorFinding {
-            name: "pressure_lag",
-            params: vec![("tau_s".into(), ParamValue::Number(tau_s)), ("channels".into(), ParamValue::Text("all".into()))],
-            channel: None,
-            explained: fit.explained_per_sample(),
-            noise_var,
-            delta_bic: delta_bic(&fit, tau, 1),
-            heldout,
-            evidence: format!("every channel's innovation regresses on its own dCp/dt with tau = {:.1} ms", 1e3 * tau_s),
-        });
+    // All channels: the time constant with the smallest pooled residual.
+    let pooled_ssr = |fits: &Vec<Option<regression::Fit>>| fits.iter().flatten().map(|fit| fit.ssr).sum::<f64>();
+    if let Some((best, _)) = per_tau.iter().enumerate().min_by(|a, b| pooled_ssr(a.1).total_cmp(&pooled_ssr(b.1))) {
+        let tau_s = grid[best];
+        let (mut segments, mut columns) = (Vec::new(), Vec::new());
+        for tap in 0..n_taps {
+            segments.extend(segments_of(runs, tap));
+            columns.extend(runs.iter().map(|run| vec![lag_column(run, tap, tau_s)]));
+        }
+        if let Some(fit) = regression::fit_through_origin(&segments, &columns) {
+            out.push(lag_finding(&segments, &columns, &fit, tau_s, None, 2));
+        }
     }
-    if let Some((tap, fit, segments, columns)) =
-        per_channel.into_iter().max_by(|a, b| a.1.explained_per_sample().total_cmp(&b.1.explained_per_sample()))
-    {
-        let noise_var = regression::difference_noise_var(&segments, None);
-        let tau = regression::integrated_autocorrelation(&segments, 50);
-        let heldout = regression::heldout_gap(&segments, &columns, &fit.beta, &fit.touched);
-        let tau_s = -fit.beta[0];
-        out.push(SensorFinding {
-            name: "pressure_lag",
-            params: vec![
-                ("tau_s".into(), ParamValue::Number(tau_s)),
-                ("channels".into(), ParamValue::Text(channel_name(tap))),
-            ],
-            channel: Some(channel_name(tap)),
-            explained: fit.explained_per_sample(),
-            noise_var,
+    // One channel: the channel and time constant that explain most.
+    let mut best_one: Option<(usize, usize, f64)> = None;
+    for (tau_idx, fits) in per_tau.iter().enumerate() {
+        for (tap, fit) in fits.iter().enumerate() {
+            if let Some(fit) = fit {
+                let gain = fit.ssr_base - fit.ssr;
+                if best_one.is_none_or(|(_, _, g)| gain > g) {
+                    best_one = Some((tap, tau_idx, gain));
+                }
+            }
+        }
+    }
+    if let Some((tap, tau_idx, _)) = best_one {
+        let segments = segments_of(runs, tap);
+        let columns: Vec<Vec<Vec<f64>>> = runs.iter().map(|run| vec![lag_column(run, tap, grid[tau_idx])]).collect();
+        if let Some(fit) = regression::fit_through_origin(&segments, &columns) {
             // One channel out of twelve chosen: the choice costs ln 12 more.
-            delta_bic: delta_bic(&fit, tau, 1) - (n_taps as f64).ln(),
-            heldout,
-            evidence: format!("{}'s innovation regresses on its dCp/dt with tau = {:.1} ms", channel_name(tap), 1e3 * tau_s),
-        });
+            let mut finding = lag_finding(&segments, &columns, &fit, grid[tau_idx], Some(tap), 2);
+            finding.delta_bic -= (n_taps as f64).ln();
+            out.push(finding);
+        }
     }
     out
 }
 
-fn clean(values: &[f64]) -> Vec<f64> {
-    values.iter().map(|v| if v.is_finite() { *v } else { 0.0 }).collect()
+fn lag_finding(
+    segments: &[Segment<'_>],
+    columns: &[Vec<Vec<f64>>],
+    fit: &regression::Fit,
+    tau_s: f64,
+    tap: Option<usize>,
+    k: usize,
+) -> SensorFinding {
+    let noise_var = regression::difference_noise_var(segments, None);
+    let autocorrelation = regression::integrated_autocorrelation(segments, 50);
+    let heldout = regression::heldout_gap(segments, columns, &fit.beta, &fit.touched);
+    let channels = tap.map_or_else(|| "all".to_owned(), channel_name);
+    SensorFinding {
+        name: "pressure_lag",
+        params: vec![
+            ("tau_s".into(), ParamValue::Number(tau_s)),
+            ("gain".into(), ParamValue::Number(fit.beta[0])),
+            ("channels".into(), ParamValue::Text(channels.clone())),
+        ],
+        channel: tap.map(channel_name),
+        explained: fit.explained_per_sample(),
+        noise_var,
+        delta_bic: delta_bic(fit, autocorrelation, k),
+        heldout,
+        evidence: format!("innovation of {channels} follows a first-order lag of the expected pressure, tau = {:.1} ms", 1e3 * tau_s),
+    }
 }
 
 /// `N_eff ln(SSR_0 / SSR) - k ln N_eff` with `N_eff = N / tau`.
@@ -180,7 +222,7 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
             explained: f64::INFINITY,
             noise_var,
             delta_bic: f64::INFINITY,
-            heldout: regression::HeldoutGap { mse_before: 0.0, mse_after: 0.0, noise_var: 0.0, n: 0 },
+            heldout: regression::HeldoutGap { mse_before: 0.0, mse_after: 0.0, noise_var: 0.0, n: 0, floor_var: 0.0 },
             evidence: format!("{name} is missing in {:.1} % of the samples (the others in {:.1} %)", 100.0 * missing_fraction, 100.0 * others_fraction),
         });
     }
@@ -217,7 +259,16 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
     let spike_columns: Vec<Vec<Vec<f64>>> = runs
         .iter()
         .map(|run| {
-            vec![run.innovation[tap].iter().map(|&v| if v.is_finite() && v.abs() > SPIKE_SIGMA * robust_sigma { v } else { 0.0 }).collect()]
+            let nu = &run.innovation[tap];
+            let big = |idx: usize| nu[idx].is_finite() && nu[idx].abs() > SPIKE_SIGMA * robust_sigma;
+            let quiet = |idx: Option<usize>| idx.is_none_or(|i| !(nu[i].is_finite() && nu[i].abs() > 3.0 * robust_sigma));
+            // A spike is isolated: its neighbours are ordinary (a burst is a lag or a step).
+            vec![(0..nu.len())
+                .map(|idx| {
+                    let next = (idx + 1 < nu.len()).then_some(idx + 1);
+                    if big(idx) && quiet(idx.checked_sub(1)) && quiet(next) { nu[idx] } else { 0.0 }
+                })
+                .collect()]
         })
         .collect();
     let spike = regression::fit_through_origin(&segments, &spike_columns);

@@ -69,6 +69,9 @@ pub struct CampaignConfig {
     pub ratio_range: [f64; 2],
     /// Only these classes (all when empty).
     pub classes: Vec<String>,
+    /// Keep every case's recording and model here (`case-NNN/data`, `case-NNN/model.bin`,
+    /// `case-NNN/diagnosis-signature.json`), to reproduce a case with `diagnose`.
+    pub keep: Option<std::path::PathBuf>,
 }
 
 impl Default for CampaignConfig {
@@ -80,6 +83,7 @@ impl Default for CampaignConfig {
             alphas_deg: (0..=8).map(|i| 2.5 * f64::from(i)).collect(),
             ratio_range: [0.5, 4.0],
             classes: Vec::new(),
+            keep: None,
         }
     }
 }
@@ -187,6 +191,18 @@ fn run_case(
     scenario.effects = effects.clone();
     let mut real = scenario.simulate(&|| {}).ok()?;
     blind(&mut real);
+    if let Some(keep) = &config.keep {
+        let dir = keep.join(format!("case-{id:03}"));
+        let _ = std::fs::create_dir_all(&dir);
+        let _ = firmware_sim::dataset::write_dataset(&dir.join("data"), &real);
+        if let Ok(blob) = crate::model::encode(&set) {
+            let _ = std::fs::write(dir.join(crate::model::BLOB_FILE), blob);
+        }
+        let _ = std::fs::write(
+            dir.join(crate::diagnose::SIGNATURE_FILE),
+            serde_json::to_string_pretty(&signature).unwrap_or_default(),
+        );
+    }
     let truth = format!("{effects:?}");
     let truth_sha256 = score::sha256_hex(truth.as_bytes());
     let clock = Instant::now();
