@@ -17,6 +17,7 @@
 
 pub mod analysis;
 pub mod codegen;
+pub mod diagnose;
 pub mod evaluate;
 pub mod fit;
 pub mod model;

@@ -1,0 +1,3 @@
+//! Sim-to-real gap diagnosis.
+
+pub mod ledger;
