@@ -68,13 +68,11 @@ pub fn cross_correlation(
         return None;
     }
     let bartlett_lag = max_lag.max((n_samples as f64).sqrt().ceil() as usize).min(n_samples - 1);
-    let auto = |pick: fn(&(Vec<f64>, Vec<f64>)) -> &[f64]| {
-        let pairs: Vec<(&[f64], &[f64])> = runs.iter().map(|r| (pick(r), pick(r))).collect();
-        pooled_lagged_products(&pairs, bartlett_lag).0
-    };
-    let auto_e = auto(|r| &r.0);
-    let auto_u = auto(|r| &r.1);
-    if !(auto_e[0] > 0.0 && auto_u[0] > 0.0) {
+    let e_pairs: Vec<(&[f64], &[f64])> = runs.iter().map(|(e, _)| (e.as_slice(), e.as_slice())).collect();
+    let u_pairs: Vec<(&[f64], &[f64])> = runs.iter().map(|(_, u)| (u.as_slice(), u.as_slice())).collect();
+    let (auto_e, _) = pooled_lagged_products(&e_pairs, bartlett_lag);
+    let (auto_u, _) = pooled_lagged_products(&u_pairs, bartlett_lag);
+    if auto_e[0].is_nan() || auto_u[0].is_nan() || auto_e[0] <= 0.0 || auto_u[0] <= 0.0 {
         return None;
     }
     let cross_pairs: Vec<(&[f64], &[f64])> = runs.iter().map(|(e, u)| (e.as_slice(), u.as_slice())).collect();

@@ -180,7 +180,7 @@ fn politis_white_block_length(values: &[f64], ranges: &[(usize, usize)]) -> f64 
     let m_max = n_f.sqrt().ceil() as usize + k_n;
     let pairs: Vec<(&[f64], &[f64])> = runs.iter().map(|r| (r.as_slice(), r.as_slice())).collect();
     let (sums, _) = super::pooled_lagged_products(&pairs, m_max);
-    if !(sums[0] > 0.0) {
+    if sums[0].is_nan() || sums[0] <= 0.0 {
         return 1.0;
     }
     let acv: Vec<f64> = sums.iter().map(|s| s / n_f).collect();

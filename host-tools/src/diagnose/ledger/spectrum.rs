@@ -17,11 +17,11 @@ use serde::Serialize;
 use super::{demeaned_paired_runs, demeaned_runs};
 
 /// Confidence of the coherence bound.
-const COHERENCE_CONFIDENCE: f64 = 0.99;
+pub const COHERENCE_CONFIDENCE: f64 = 0.99;
 
 /// Bins on each side whose median is the local floor of [`spectral_peak`]: wide enough that
 /// the peak's own Hann main lobe (±2 bins) is a minority of them.
-const PEAK_NEIGHBOUR_BINS: usize = 8;
+pub const PEAK_NEIGHBOUR_BINS: usize = 8;
 
 /// Welch power spectral density (Hann, 50 % overlap).
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -138,7 +138,7 @@ pub fn spectral_peak(spectrum: &Spectrum, min_hz: f64, max_hz: f64) -> Option<Sp
         neighbours.retain(|p| p.is_finite());
         neighbours.sort_by(f64::total_cmp);
         let floor = super::sorted_quantile(&neighbours, 0.5);
-        if !(floor > 0.0) || !psd[idx].is_finite() {
+        if floor.is_nan() || floor <= 0.0 || !psd[idx].is_finite() {
             continue;
         }
         let ratio = psd[idx] / floor;
@@ -211,7 +211,7 @@ pub fn coherence(
         }
     }
     let equivalent_segments = welch.equivalent_windows(&windows_per_run);
-    if !(equivalent_segments > 1.0) {
+    if equivalent_segments.is_nan() || equivalent_segments <= 1.0 {
         return None;
     }
     let gamma2: Vec<f64> = (0..n_bins)
@@ -312,7 +312,7 @@ impl Welch {
 
 /// Factor 2 of a one-sided spectrum, except at DC and (for even lengths) Nyquist.
 fn one_sided_factor(bin: usize, len: usize) -> f64 {
-    if bin == 0 || (len % 2 == 0 && bin == len / 2) { 1.0 } else { 2.0 }
+    if bin == 0 || (len.is_multiple_of(2) && bin == len / 2) { 1.0 } else { 2.0 }
 }
 
 /// Bin spacing of a spectrum in Hz (0 for fewer than two bins).
