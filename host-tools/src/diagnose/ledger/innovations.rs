@@ -89,7 +89,11 @@ pub fn channel_innovation(
         nis_mean,
         nis_bounds_99,
         consistent: nis_mean >= nis_bounds_99[0] && nis_mean <= nis_bounds_99[1],
-        outlier_fraction: ratio(normalised.iter().filter(|z| z.abs() > OUTLIER_SIGMA).count(), n_finite),
+        outlier_fraction: if sigma.is_nan() {
+            f64::NAN
+        } else {
+            ratio(normalised.iter().filter(|z| z.abs() > OUTLIER_SIGMA).count(), n_finite)
+        },
         longest_constant_run_s: longest_constant_run_s(raw, sample_hz),
         whiteness_p: ljung_box(innovation, lags, 0).map_or(f64::NAN, |w| w.p_value),
     }
@@ -218,6 +222,9 @@ mod tests {
         let stats = channel_innovation("x", &[], &[], 0.0, 0.0);
         assert!(stats.mean_sigma.is_nan() && !stats.consistent);
         assert!(stats.longest_constant_run_s.is_nan());
+        let stats = channel_innovation("x", &[&[1.0, 1.0]], &[&[0.5, -0.5, 9.0]], -1.0, 10.0);
+        assert!(stats.nis_mean.is_nan() && stats.outlier_fraction.is_nan() && !stats.consistent);
+        assert_eq!(stats.longest_constant_run_s, 0.1);
         let stats = channel_innovation("x", &[&[f64::NAN; 3]], &[&[f64::NAN; 3]], 1.0, 10.0);
         assert_eq!(stats.missing_fraction, 1.0);
         assert!(stats.whiteness_p.is_nan());

@@ -128,7 +128,7 @@ pub struct SpectralPeak {
 pub fn spectral_peak(spectrum: &Spectrum, min_hz: f64, max_hz: f64) -> Option<SpectralPeak> {
     let psd = &spectrum.psd;
     let mut best: Option<SpectralPeak> = None;
-    for (idx, &freq_hz) in spectrum.freq_hz.iter().enumerate() {
+    for (idx, &freq_hz) in spectrum.freq_hz.iter().enumerate().take(psd.len()) {
         if !(freq_hz >= min_hz && freq_hz <= max_hz) {
             continue;
         }
@@ -193,31 +193,15 @@ pub fn coherence(
     }
     let runs = demeaned_paired_runs(residual, input, segment_len)?;
     let welch = Welch::new(segment_len);
-    let n_bins = welch.n_bins();
-    let mut cross = vec![Complex::new(0.0, 0.0); n_bins];
-    let (mut power_e, mut power_u) = (vec![0.0; n_bins], vec![0.0; n_bins]);
-    let mut windows_per_run = Vec::with_capacity(runs.len());
-    for (e, u) in &runs {
-        let starts = welch.starts(e.len());
-        windows_per_run.push(starts.len());
-        for start in starts {
-            let spec_e = welch.transform(&e[start..start + segment_len]);
-            let spec_u = welch.transform(&u[start..start + segment_len]);
-            for bin in 0..n_bins {
-                cross[bin] += spec_e[bin] * spec_u[bin].conj();
-                power_e[bin] += spec_e[bin].norm_sqr();
-                power_u[bin] += spec_u[bin].norm_sqr();
-            }
-        }
-    }
-    let equivalent_segments = welch.equivalent_windows(&windows_per_run);
+    let spectra = welch.cross_spectra(&runs);
+    let equivalent_segments = welch.equivalent_windows(&spectra.windows_per_run);
     if equivalent_segments.is_nan() || equivalent_segments <= 1.0 {
         return None;
     }
-    let gamma2: Vec<f64> = (0..n_bins)
+    let gamma2: Vec<f64> = (0..welch.n_bins())
         .map(|bin| {
-            let denom = power_e[bin] * power_u[bin];
-            if denom > 0.0 { (cross[bin].norm_sqr() / denom).min(1.0) } else { 0.0 }
+            let denom = spectra.power_e[bin] * spectra.power_u[bin];
+            if denom > 0.0 { (spectra.cross[bin].norm_sqr() / denom).min(1.0) } else { 0.0 }
         })
         .collect();
     let bound_99 = 1.0 - (1.0 - COHERENCE_CONFIDENCE).powf(1.0 / (equivalent_segments - 1.0));
@@ -229,9 +213,17 @@ pub fn coherence(
         gamma2,
         bound_99,
         equivalent_segments,
-        n_windows: windows_per_run.iter().sum(),
+        n_windows: spectra.windows_per_run.iter().sum(),
         bands_above_bound,
     })
+}
+
+/// Welch sums over all windows of two signals: `Σ E U*`, `Σ|E|²`, `Σ|U|²` per bin.
+struct CrossSpectra {
+    cross: Vec<Complex<f64>>,
+    power_e: Vec<f64>,
+    power_u: Vec<f64>,
+    windows_per_run: Vec<usize>,
 }
 
 /// A Welch set-up: window length, the periodic Hann window and an FFT plan.
@@ -283,6 +275,31 @@ impl Welch {
         self.fft.process(&mut buffer);
         buffer.truncate(self.n_bins());
         buffer
+    }
+
+    /// The Welch sums of paired runs, windows inside each run only.
+    fn cross_spectra(&self, runs: &[(Vec<f64>, Vec<f64>)]) -> CrossSpectra {
+        let n_bins = self.n_bins();
+        let mut sums = CrossSpectra {
+            cross: vec![Complex::new(0.0, 0.0); n_bins],
+            power_e: vec![0.0; n_bins],
+            power_u: vec![0.0; n_bins],
+            windows_per_run: Vec::with_capacity(runs.len()),
+        };
+        for (e, u) in runs {
+            let starts = self.starts(e.len());
+            sums.windows_per_run.push(starts.len());
+            for start in starts {
+                let spec_e = self.transform(&e[start..start + self.len]);
+                let spec_u = self.transform(&u[start..start + self.len]);
+                for bin in 0..n_bins {
+                    sums.cross[bin] += spec_e[bin] * spec_u[bin].conj();
+                    sums.power_e[bin] += spec_e[bin].norm_sqr();
+                    sums.power_u[bin] += spec_u[bin].norm_sqr();
+                }
+            }
+        }
+        sums
     }
 
     /// `c_m²`: squared normalised overlap of the window with itself shifted by `m` steps.
@@ -448,6 +465,8 @@ mod tests {
         assert!(coherence("u", &[&a[..40]], &[&a[..40]], FS_HZ, 32).is_none());
         let flat = Spectrum { freq_hz: vec![0.0, 1.0], psd: vec![0.0, 0.0], n_windows: 1 };
         assert!(spectral_peak(&flat, 0.0, 10.0).is_none());
+        let malformed = Spectrum { freq_hz: vec![0.0, 1.0, 2.0, 3.0], psd: vec![1.0, 5.0], n_windows: 1 };
+        assert_eq!(spectral_peak(&malformed, 0.0, 10.0).unwrap().freq_hz, 1.0);
         assert_eq!(band_shares(&flat, &[0.0, 1.0])[0].share, 0.0);
     }
 }
