@@ -4,6 +4,19 @@
 //! A peak outside the band at lag `k > 0` means the part of the output caused by `u(t−k)` is not
 //! described by the model (unmodelled dynamics or a wrong delay). Only lags `k ≥ 0` are computed:
 //! under closed-loop blowing control negative lags show feedback, not model error.
+//!
+//! # Examples
+//!
+//! ```
+//! use host_tools::diagnose::ledger::cross_correlation;
+//!
+//! // An irregular input, and a residual that still holds it three samples late.
+//! let input: Vec<f64> = (0..2000).map(|k| ((k * k % 997) as f64 * 0.37).sin()).collect();
+//! let residual: Vec<f64> = (0..2000).map(|k| if k >= 3 { input[k - 3] } else { 0.0 }).collect();
+//! let test = cross_correlation("c_mu", &[&residual], &[&input], 10).unwrap();
+//! assert_eq!(test.peak_lag, 3);
+//! assert!(test.significant);
+//! ```
 
 use serde::Serialize;
 use statrs::distribution::{ContinuousCDF, Normal};

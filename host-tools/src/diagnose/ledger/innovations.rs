@@ -4,6 +4,19 @@
 //! For a correct filter the innovation `ν` of each channel is white with standard deviation
 //! `√S_ii`. One channel failing these checks points to its port, tube or transducer; all
 //! channels failing together point to a global effect.
+//!
+//! # Examples
+//!
+//! ```
+//! use host_tools::diagnose::ledger::channel_innovation;
+//!
+//! // A port that froze for four samples (30 ms at 100 Hz) and one spike of 8 σ.
+//! let raw = [1.00, 1.02, 1.01, 1.01, 1.01, 1.01, 0.99, 1.03];
+//! let innovation = [0.01, -0.02, 0.08, -0.01, 0.00, 0.01, -0.01, 0.02];
+//! let stats = channel_innovation("p4", &[&raw], &[&innovation], 0.01, 100.0);
+//! assert!((stats.longest_constant_run_s - 0.03).abs() < 1e-12);
+//! assert_eq!(stats.outlier_fraction, 1.0 / 8.0);
+//! ```
 
 use serde::Serialize;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
@@ -105,7 +118,7 @@ pub fn channel_innovation(
 ///
 /// Differences are taken within finite runs (segments split at non-finite samples) and each
 /// run's mean difference (a linear trend) is removed; the sum of squares is pooled over runs
-/// with `n − 1` degrees of freedom per run. `None` without two runs' worth of differences.
+/// with `n − 1` degrees of freedom per run. `None` when no run has at least two differences.
 pub fn difference_noise_var(segments: &[&[f64]]) -> Option<f64> {
     pooled_difference_var(segments, 1).map(|v| v / 2.0)
 }

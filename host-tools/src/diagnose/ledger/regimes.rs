@@ -6,6 +6,19 @@
 //! bootstrap would understate the uncertainty; the interval comes from the stationary bootstrap
 //! (Politis & Romano 1994), whose random block lengths keep the dependence and which, unlike the
 //! moving-block bootstrap, does not under-sample the ends of a series.
+//!
+//! # Examples
+//!
+//! ```
+//! use host_tools::diagnose::ledger::regime_shares;
+//!
+//! let residual = [0.1, -0.1, 0.1, -0.1, 1.0, -1.0, 1.0, -1.0];
+//! let bins = [0, 0, 0, 0, 1, 1, 1, 1];
+//! let labels = vec!["upstroke".to_owned(), "downstroke".to_owned()];
+//! let shares = regime_shares(&[&residual], &[&bins], &labels, 7, 100);
+//! assert!((shares[1].share - 4.0 / 4.04).abs() < 1e-12);
+//! assert!((shares[1].mse - 1.0).abs() < 1e-12);
+//! ```
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

@@ -9,6 +9,21 @@
 //! window's mean removed before windowing (scipy's `detrend='constant'`), windows taken inside
 //! one finite run and never across a join or a missing sample; a run's tail shorter than a
 //! window is not used.
+//!
+//! # Examples
+//!
+//! ```
+//! use host_tools::diagnose::ledger::{band_shares, welch_psd};
+//!
+//! // A unit 10 Hz sine at 100 Hz: all its power, 0.5, in the 5-15 Hz band.
+//! let sample_hz = 100.0;
+//! let tau = 2.0 * std::f64::consts::PI;
+//! let x: Vec<f64> = (0..4096).map(|k| (tau * 10.0 * k as f64 / sample_hz).sin()).collect();
+//! let psd = welch_psd(&[&x], sample_hz, 256).unwrap();
+//! let shares = band_shares(&psd, &[0.0, 5.0, 15.0, 50.0]);
+//! assert!(shares[1].share > 0.99);
+//! assert!((shares[1].rms - 0.5_f64.sqrt()).abs() < 0.01);
+//! ```
 
 use rustfft::FftPlanner;
 use rustfft::num_complex::Complex;
