@@ -46,9 +46,10 @@ pub struct RegimeShare {
 /// Residual energy per bin: `bins[s][t]` is the index into `labels` of sample `t` of segment
 /// `s`.
 ///
-/// Samples with a non-finite residual or a bin index outside `labels` are skipped, and so is a
-/// segment whose bin slice has a different length (or that has no bin slice): pairing samples
-/// with the wrong bins would be worse than leaving them out.
+/// Samples with a non-finite residual or a bin index outside `labels` are skipped (and split
+/// their segment, as missing samples do elsewhere in the ledger), and so is a whole segment
+/// whose bin slice has a different length (or that has no bin slice): pairing samples with the
+/// wrong bins would be worse than leaving them out.
 ///
 /// The interval resamples the whole pooled series `resamples` times with the stationary
 /// bootstrap: a block starts at a uniformly drawn sample, continues with probability `1 − 1/b`
@@ -97,6 +98,8 @@ struct PooledBins {
 }
 
 impl PooledBins {
+    /// Usable samples of every segment; a skipped sample splits its segment, so that bootstrap
+    /// blocks never bridge a gap, as elsewhere in the ledger.
     fn new(segments: &[&[f64]], bins: &[&[usize]], n_labels: usize) -> Self {
         let mut pooled =
             PooledBins { squared: Vec::new(), bin: Vec::new(), ranges: Vec::new(), segment_of: Vec::new() };
@@ -104,19 +107,28 @@ impl PooledBins {
             if residual.len() != bin.len() {
                 continue;
             }
-            let start = pooled.squared.len();
+            let mut start = pooled.squared.len();
             for (e, &b) in residual.iter().zip(bin.iter()) {
                 if e.is_finite() && b < n_labels {
                     pooled.squared.push(e * e);
                     pooled.bin.push(b);
                     pooled.segment_of.push(pooled.ranges.len());
+                } else {
+                    start = pooled.close_range(start);
                 }
             }
-            if pooled.squared.len() > start {
-                pooled.ranges.push((start, pooled.squared.len()));
-            }
+            pooled.close_range(start);
         }
         pooled
+    }
+
+    /// Ends the range that began at `start` (if it holds a sample); returns the next start.
+    fn close_range(&mut self, start: usize) -> usize {
+        let end = self.squared.len();
+        if end > start {
+            self.ranges.push((start, end));
+        }
+        end
     }
 
     /// `(Σ e², count)` per bin.
@@ -278,6 +290,8 @@ mod tests {
         assert_eq!(shares[1].n_samples, 1);
         assert!((shares[1].share - 0.9).abs() < 1e-12);
         assert!(shares[0].mse_ci95[0].is_nan());
+        let pooled = PooledBins::new(&[&e, &mismatched], &[&bins, &[0]], 2);
+        assert_eq!(pooled.ranges, vec![(0, 1), (1, 2)]);
         let empty = regime_shares(&[], &[], &labels(2), 1, 10);
         assert!(empty.iter().all(|s| s.n_samples == 0 && s.share == 0.0 && s.mse.is_nan()));
     }
