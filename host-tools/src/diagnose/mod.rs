@@ -18,6 +18,7 @@
 
 pub mod attribution;
 pub mod candidates;
+pub mod ledger;
 pub mod regression;
 pub mod report;
 pub mod result;
