@@ -18,6 +18,7 @@
 
 pub mod attribution;
 pub mod candidates;
+pub mod gap_ledger;
 pub mod ledger;
 pub mod regression;
 pub mod report;
@@ -277,19 +278,35 @@ pub fn diagnose(
     }
 
     let confounded = confounding(&first_round, &runs, &residuals, &context);
+    progress("the gap ledger");
+    let ledger = gap_ledger::build(&runs, &remainder, noise_var, 1);
+    let sensor_verdict = verdict == Verdict::Effect && where_.block.as_deref() == Some("sensor");
+    if verdict != Verdict::None && !sensor_verdict {
+        where_.band_hz = ledger.dominant_band_hz;
+    }
+    // For a sensor verdict the gap is the channel's innovation, in Cp.
+    let stream_gap = match sensor_named.first() {
+        Some(finding) if sensor_verdict && finding.heldout.n > 0 => finding.heldout,
+        _ => gap,
+    };
+    where_.regimes = ledger
+        .regimes
+        .iter()
+        .map(|r| result::RegimeShareSummary { label: r.label.clone(), share: finite(r.share) })
+        .collect();
     let diagnosis = Diagnosis {
         verdict,
         gap: Gap {
-            heldout_rms: finite(gap.gap_before()),
-            noise_rms: finite(gap.noise_var.sqrt()),
-            heldout_raw_rms: finite(gap.mse_before.sqrt()),
+            heldout_rms: finite(stream_gap.gap_before()),
+            noise_rms: finite(stream_gap.noise_var.sqrt()),
+            heldout_raw_rms: finite(stream_gap.mse_before.sqrt()),
             floor_rms: finite(
                 (floor.gap_to_noise_by_kind.values().copied().sum::<f64>().max(0.0)
                     / floor.gap_to_noise_by_kind.len().max(1) as f64
                     * gap.noise_var)
                     .sqrt(),
             ),
-            stream: if matches!(where_.block.as_deref(), Some("sensor")) { "pressure" } else { "balance" }.into(),
+            stream: if sensor_verdict { "pressure" } else { "balance" }.into(),
         },
         where_,
         effects,
@@ -304,6 +321,7 @@ pub fn diagnose(
         noise_var_training: finite(noise_var),
         autocorrelation_time_samples: finite(autocorrelation_time),
         signature: own_signature,
+        ledger,
         elapsed_s: clock.elapsed().as_secs_f64(),
     };
     Ok((diagnosis, Evidence { runs, first_round, named, remainder }))
@@ -379,6 +397,7 @@ fn balance_effect(
         heldout_rms_before: finite(gap.gap_before()),
         heldout_rms_after: finite(gap.gap_after()),
         shrink: finite(gap.shrink()),
+        shrink_total: finite(regression::HeldoutGap { floor_var: 0.0, ..gap }.shrink()),
         delta_bic: finite(profiled.delta_bic),
         effect_to_noise: finite((profiled.explained() / gap.noise_var.max(f64::MIN_POSITIVE)).sqrt()),
         evidence: format!(
@@ -411,6 +430,7 @@ fn sensor_effect(finding: &SensorFinding) -> EffectResult {
         heldout_rms_before: finite(finding.heldout.gap_before()),
         heldout_rms_after: finite(finding.heldout.gap_after()),
         shrink: if dead { 1.0 } else { finite(finding.heldout.shrink()) },
+        shrink_total: if dead { 1.0 } else { finite(finding.heldout.shrink()) },
         delta_bic: finite(finding.delta_bic.min(1e12)),
         effect_to_noise: finite((finding.explained.min(1e12) / finding.noise_var.max(f64::MIN_POSITIVE)).sqrt()),
         evidence: finding.evidence.clone(),

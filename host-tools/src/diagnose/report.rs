@@ -103,13 +103,66 @@ fn ledger_section(diagnosis: &Diagnosis) -> Section {
         "Balance residual on the training part: noise variance {:.3e}, integrated autocorrelation time {:.1} samples; diagnosis took {:.2} s.",
         diagnosis.noise_var_training, diagnosis.autocorrelation_time_samples, diagnosis.elapsed_s
     ));
-    let rows = where_.regimes.iter().map(|r| vec![r.label.clone(), format!("{:.3}", r.share)]).collect();
-    Section {
-        heading: "Where the gap lies".into(),
-        paragraphs,
-        tables: vec![Table { caption: "Share of the residual energy by regime".into(), header: vec!["regime".into(), "share".into()], rows }],
-        figures: Vec::new(),
-    }
+    let ledger = &diagnosis.ledger;
+    let white = |w: &Option<super::ledger::Whiteness>| {
+        w.as_ref().map_or_else(|| "n/a".to_owned(), |w| format!("Q = {:.1} over {} lags, p = {:.3} ({})", w.q, w.lags, w.p_value, if w.white { "white" } else { "not white" }))
+    };
+    paragraphs.push(format!(
+        "Whiteness of the held-out balance residual (Ljung-Box, 1 %): before, {}; after the named effects, {}.",
+        white(&ledger.whiteness_before),
+        white(&ledger.whiteness_after)
+    ));
+    let regimes = Table {
+        caption: "Held-out balance residual energy by regime (95 % stationary-bootstrap interval of the mean square)".into(),
+        header: ["regime", "samples", "share", "mean square", "95 % interval"].map(String::from).to_vec(),
+        rows: ledger
+            .regimes
+            .iter()
+            .map(|r| vec![r.label.clone(), r.n_samples.to_string(), format!("{:.3}", r.share), fmt(r.mse), format!("{} - {}", fmt(r.mse_ci95[0]), fmt(r.mse_ci95[1]))])
+            .collect(),
+    };
+    let bands = Table {
+        caption: "Share of the residual power beyond the white-noise floor, by band".into(),
+        header: ["band (Hz)", "share", "RMS"].map(String::from).to_vec(),
+        rows: ledger.bands.iter().map(|b| vec![format!("{:.1} - {:.1}", b.band_hz[0], b.band_hz[1]), format!("{:.3}", b.share), fmt(b.rms)]).collect(),
+    };
+    let ccf = Table {
+        caption: "Residual-input cross-correlation (held-out; positive lag: the input leads; 99 % bound for coloured signals, family-wise over the lags)".into(),
+        header: ["input", "peak lag (samples)", "peak", "bound", "significant", "coherent bands (Hz)"].map(String::from).to_vec(),
+        rows: ledger
+            .cross_correlation
+            .iter()
+            .map(|c| {
+                let bands = ledger
+                    .coherent_bands_hz
+                    .iter()
+                    .find(|(name, _)| *name == c.input)
+                    .map(|(_, b)| b.iter().take(4).map(|b| format!("{:.1}-{:.1}", b[0], b[1])).collect::<Vec<_>>().join(", "))
+                    .unwrap_or_default();
+                vec![c.input.clone(), c.peak_lag.to_string(), format!("{:.3}", c.peak), format!("{:.3}", c.family_bound_99), if c.significant { "yes".into() } else { "no".into() }, bands]
+            })
+            .collect(),
+    };
+    let channels = Table {
+        caption: "Pressure channels: innovation statistics on the held-out part (normalised by each channel's difference-based noise)".into(),
+        header: ["channel", "missing", "mean (sigma)", "std ratio", "outliers", "longest constant (s)", "whiteness p"].map(String::from).to_vec(),
+        rows: ledger
+            .channels
+            .iter()
+            .map(|c| {
+                vec![
+                    c.channel.clone(),
+                    format!("{:.3}", c.missing_fraction),
+                    format!("{:.2}", c.mean_sigma),
+                    format!("{:.2}", c.std_ratio),
+                    format!("{:.4}", c.outlier_fraction),
+                    format!("{:.3}", c.longest_constant_run_s),
+                    format!("{:.3}", c.whiteness_p),
+                ]
+            })
+            .collect(),
+    };
+    Section { heading: "Where the gap lies".into(), paragraphs, tables: vec![regimes, bands, ccf, channels], figures: Vec::new() }
 }
 
 fn candidates_section(diagnosis: &Diagnosis) -> Section {

@@ -67,6 +67,8 @@ pub struct Diagnosis {
     /// This comparison's signature (what every candidate explains, in noise variances): the
     /// floor for later diagnoses when the data is the sim's own.
     pub signature: super::Signature,
+    /// The gap ledger: residual tests by input, band, regime and pressure channel.
+    pub ledger: super::gap_ledger::GapLedger,
     /// Wall time of the diagnosis, s.
     pub elapsed_s: f64,
 }
@@ -109,7 +111,7 @@ pub struct Where {
 pub struct RegimeShareSummary {
     /// The bin.
     pub label: String,
-    /// Share of the residual energy beyond noise.
+    /// Share of the held-out residual energy.
     pub share: f64,
 }
 
@@ -128,6 +130,9 @@ pub struct EffectResult {
     pub heldout_rms_after: f64,
     /// `1 - after / before`.
     pub shrink: f64,
+    /// The same with the gaps beyond the noise only (the sim's own floor left in both): the
+    /// share of the whole held-out gap the effect removes.
+    pub shrink_total: f64,
     /// Complexity-penalised evidence on the training part.
     pub delta_bic: f64,
     /// RMS of the fitted effect over the noise RMS, on the runs it touches.

@@ -111,17 +111,21 @@ fn lag_findings(runs: &[RunStreams], n_taps: usize) -> Vec<SensorFinding> {
         })
         .collect();
     let mut out = Vec::new();
-    // All channels: the time constant with the smallest pooled residual.
+    // All channels: the time constant with the smallest pooled residual, each channel with its
+    // own gain (the filter's correction absorbs a different share of each channel's lag).
     let pooled_ssr = |fits: &Vec<Option<regression::Fit>>| fits.iter().flatten().map(|fit| fit.ssr).sum::<f64>();
     if let Some((best, _)) = per_tau.iter().enumerate().min_by(|a, b| pooled_ssr(a.1).total_cmp(&pooled_ssr(b.1))) {
         let tau_s = grid[best];
         let (mut segments, mut columns) = (Vec::new(), Vec::new());
         for tap in 0..n_taps {
             segments.extend(segments_of(runs, tap));
-            columns.extend(runs.iter().map(|run| vec![lag_column(run, tap, tau_s)]));
+            columns.extend(runs.iter().map(|run| {
+                let own = lag_column(run, tap, tau_s);
+                (0..n_taps).map(|slot| if slot == tap { own.clone() } else { vec![0.0; own.len()] }).collect::<Vec<_>>()
+            }));
         }
         if let Some(fit) = regression::fit_through_origin(&segments, &columns) {
-            out.push(lag_finding(&segments, &columns, &fit, tau_s, None, 2));
+            out.push(lag_finding(&segments, &columns, &fit, tau_s, None, n_taps + 1));
         }
     }
     // One channel: the channel and time constant that explain most.

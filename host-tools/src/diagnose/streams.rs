@@ -276,3 +276,4 @@ fn innovations(run: &Run, set: &CoefficientSet, dt_s: f64) -> Vec<Vec<f64>> {
     }
     out
 }
+

@@ -114,8 +114,10 @@ pub struct CaseRecord {
     pub named: Vec<String>,
     /// The channel the diagnosis named.
     pub named_channel: Option<String>,
-    /// Held-out shrink of the first named effect.
+    /// Held-out shrink of the first named effect (beyond the sim's own floor).
     pub shrink: Option<f64>,
+    /// The same against the whole held-out gap beyond noise.
+    pub shrink_total: Option<f64>,
     /// Scored as right.
     pub correct: bool,
     /// Seconds of the diagnosis.
@@ -209,14 +211,15 @@ fn run_case(
     let diagnose_config = DiagnoseConfig { signature: Some(signature), ..DiagnoseConfig::default() };
     let outcome = diagnose(&real, Some((&set, "fitted on a clean recording".into())), &diagnose_config, &|_| {});
     let diagnosis_s = clock.elapsed().as_secs_f64();
-    let (verdict, named, named_channel, shrink) = match outcome {
+    let (verdict, named, named_channel, shrink, shrink_total) = match outcome {
         Ok((diagnosis, _)) => (
             diagnosis.verdict.as_str().to_owned(),
             diagnosis.effects.iter().map(|e| e.name.clone()).collect::<Vec<_>>(),
             diagnosis.where_.channel.clone(),
             diagnosis.effects.first().map(|e| e.shrink),
+            diagnosis.effects.first().map(|e| e.shrink_total),
         ),
-        Err(error) => (format!("error: {error}"), Vec::new(), None, None),
+        Err(error) => (format!("error: {error}"), Vec::new(), None, None, None),
     };
     let mut record = CaseRecord {
         id,
@@ -231,6 +234,7 @@ fn run_case(
         named,
         named_channel,
         shrink,
+        shrink_total,
         correct: false,
         diagnosis_s,
     };
