@@ -263,18 +263,26 @@ fn diagnose(args: DiagnoseArgs) -> anyhow::Result<()> {
         }
         None => None,
     };
-    // The model's own signature, written by `fit` beside model.bin.
-    let signature = match &args.model {
+    // The model's own signature, written by `fit` beside model.bin; else the built-in model's.
+    let own_signature = match &args.model {
         Some(path) => {
-            let folder = if path.is_dir() { path.clone() } else { path.parent().map(PathBuf::from).unwrap_or_default() };
+            let folder =
+                if path.is_dir() { path.clone() } else { path.parent().map(PathBuf::from).unwrap_or_default() };
             let file = folder.join(host_tools::diagnose::SIGNATURE_FILE);
             match std::fs::read_to_string(&file) {
-                Ok(text) => Some(serde_json::from_str(&text).with_context(|| format!("{}: not a diagnosis signature", file.display()))?),
+                Ok(text) => Some(
+                    serde_json::from_str(&text)
+                        .with_context(|| format!("{}: not a diagnosis signature", file.display()))?,
+                ),
                 Err(_) => None,
             }
         }
         None => None,
     };
+    if own_signature.is_none() {
+        eprintln!("note: no diagnosis signature of this sim; the built-in model's (default campaign) sets the floor");
+    }
+    let signature = Some(own_signature.unwrap_or_else(host_tools::diagnose::default_signature));
     let config = DiagnoseConfig {
         split: host_tools::fit::split::Split { holdout_fraction: args.holdout_fraction },
         signature,
@@ -282,7 +290,9 @@ fn diagnose(args: DiagnoseArgs) -> anyhow::Result<()> {
     };
     let spinner = spinner("diagnosing".into());
     let (diagnosis, evidence) =
-        diagnose(&dataset, model.as_ref().map(|(set, name)| (set, name.clone())), &config, &|stage| spinner.set_message(format!("diagnosing: {stage}")))?;
+        diagnose(&dataset, model.as_ref().map(|(set, name)| (set, name.clone())), &config, &|stage| {
+            spinner.set_message(format!("diagnosing: {stage}"))
+        })?;
     spinner.set_message("diagnosing: writing the report");
     let report = report::build(&diagnosis, &evidence, &args.real.display().to_string());
     let json = serde_json::to_value(&diagnosis)?;
@@ -299,7 +309,11 @@ fn diagnose(args: DiagnoseArgs) -> anyhow::Result<()> {
     if let Some(unexplained) = &diagnosis.unexplained {
         println!("  {}", unexplained.description);
     }
-    println!("diagnosis took {:.1} s; report: {}", started.elapsed().as_secs_f64(), args.report.join("report.html").display());
+    println!(
+        "diagnosis took {:.1} s; report: {}",
+        started.elapsed().as_secs_f64(),
+        args.report.join("report.html").display()
+    );
     Ok(())
 }
 
@@ -307,20 +321,37 @@ fn diagnose(args: DiagnoseArgs) -> anyhow::Result<()> {
 fn validate_diagnosis(args: ValidateArgs) -> anyhow::Result<()> {
     use host_tools::validate::{CampaignConfig, run_campaign, score};
     let started = Instant::now();
-    let config = CampaignConfig { cases: args.cases, seed: args.seed, duration_s: args.duration_s, classes: args.classes, keep: args.keep, ..CampaignConfig::default() };
+    let config = CampaignConfig {
+        cases: args.cases,
+        seed: args.seed,
+        duration_s: args.duration_s,
+        classes: args.classes,
+        keep: args.keep,
+        ..CampaignConfig::default()
+    };
     let progress = progress_bar(args.cases as u64, "diagnosing blind cases");
     let records = run_campaign(&config, &|| progress.inc(1));
     progress.finish_and_clear();
     let summary = score::summarise(&records);
     let described = format!(
         "{} cases, master seed {}, runs of {} s at one angle of attack each (roll, actuation, roll+actuation); took {:.0} s.",
-        records.len(), args.seed, args.duration_s, started.elapsed().as_secs_f64()
+        records.len(),
+        args.seed,
+        args.duration_s,
+        started.elapsed().as_secs_f64()
     );
     let report = score::report(&records, &summary, &described);
     let json = serde_json::json!({ "config": format!("{config:?}"), "summary": summary, "cases": records });
     host_tools::report::write_report(&args.report, &report, "validation.json", &json)
         .with_context(|| format!("writing the report {}", args.report.display()))?;
-    print!("{}", report.sections[0].tables[0].rows.iter().map(|row| format!("{:<48} {:>8} {:>10}\n", row[0], row[1], row[2])).collect::<String>());
+    print!(
+        "{}",
+        report.sections[0].tables[0]
+            .rows
+            .iter()
+            .map(|row| format!("{:<48} {:>8} {:>10}\n", row[0], row[1], row[2]))
+            .collect::<String>()
+    );
     for (class, cells) in &summary.accuracy_by_ratio {
         println!("{class:<18} {}", cells.iter().map(|(r, t)| format!("{r:>3}/{t:<3}")).collect::<Vec<_>>().join(" "));
     }

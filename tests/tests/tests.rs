@@ -22,3 +22,6 @@ mod sil;
 
 // The firmware in QEMU (STM32F405) against the host replay: same outputs, instruction counts.
 mod firmware;
+
+// The sim-to-real gap diagnosis: contract JSON, named effects, clean recordings, a blind slice.
+mod diagnose;

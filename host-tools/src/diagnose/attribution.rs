@@ -75,7 +75,13 @@ pub fn profile(
     if std::env::var_os("DIAG_DEBUG").is_some() {
         eprintln!(
             "{:<18} {:?} beta {:?} heldout before {:.3e} after {:.3e} noise {:.3e} explained {:.3e}",
-            candidate.name(), hyper, fit.beta, heldout.mse_before, heldout.mse_after, heldout.noise_var, fit.explained_per_sample()
+            candidate.name(),
+            hyper,
+            fit.beta,
+            heldout.mse_before,
+            heldout.mse_after,
+            heldout.noise_var,
+            fit.explained_per_sample()
         );
     }
     Some(Profiled { candidate, hyper, fit, delta_bic, profile, heldout })

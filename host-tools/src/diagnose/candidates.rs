@@ -119,12 +119,18 @@ impl Candidate {
             Self::ActuatorDelay | Self::ActuatorLag => {
                 "a bench step test of the valve and runs at a second free-stream speed (the pneumatic part is fixed in seconds, the aerodynamic part scales with c/U)"
             }
-            Self::InertialTare => "wind-off runs with the same roll motion (the inertial reaction stays, the aerodynamics vanish)",
-            Self::GravityTare => "wind-off runs at held roll angles (the weight moment stays) or a second free-stream speed",
+            Self::InertialTare => {
+                "wind-off runs with the same roll motion (the inertial reaction stays, the aerodynamics vanish)"
+            }
+            Self::GravityTare => {
+                "wind-off runs at held roll angles (the weight moment stays) or a second free-stream speed"
+            }
             Self::RollDamping | Self::VortexLag => {
                 "forced roll at several reduced frequencies and a second free-stream speed (aerodynamic lags scale with c/U, rig lags do not)"
             }
-            Self::Coupling => "roll+actuation runs with the blowing scheduled independently of the roll phase, at two roll amplitudes",
+            Self::Coupling => {
+                "roll+actuation runs with the blowing scheduled independently of the roll phase, at two roll amplitudes"
+            }
             Self::BalanceResonance => "a wind-off tap test of balance and sting",
             Self::BiasDrift => "wind-off zero readings before and after each run",
             Self::Recalibration => "runs at new angles of attack and amplitudes inside the fitted range",
@@ -220,10 +226,9 @@ pub fn columns(
             vec![difference(&run.plant_response(context.set, &lagged), &run.cl_afc())]
         }
         Candidate::InertialTare => vec![run.phi_ddot_rad_s2.clone()],
-        Candidate::GravityTare => vec![
-            run.phi_rad.iter().map(|phi| phi.sin()).collect(),
-            run.phi_rad.iter().map(|phi| phi.cos()).collect(),
-        ],
+        Candidate::GravityTare => {
+            vec![run.phi_rad.iter().map(|phi| phi.sin()).collect(), run.phi_rad.iter().map(|phi| phi.cos()).collect()]
+        }
         Candidate::RollDamping => {
             vec![run.phi_dot_rad_s.iter().map(|rate| rate * context.half_span_time_s).collect()]
         }

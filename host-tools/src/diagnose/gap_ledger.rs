@@ -60,7 +60,12 @@ pub fn build(runs: &[RunStreams], remainder: &[Vec<f64>], noise_var: f64, seed: 
         ("phi_rad", heldout(&runs.iter().map(|r| r.phi_rad.clone()).collect::<Vec<_>>())),
         ("phi_dot_rad_s", heldout(&runs.iter().map(|r| r.phi_dot_rad_s.clone()).collect::<Vec<_>>())),
         ("phi_ddot_rad_s2", heldout(&runs.iter().map(|r| r.phi_ddot_rad_s2.clone()).collect::<Vec<_>>())),
-        ("cmu_total", heldout(&runs.iter().map(|r| r.cmu[0].iter().zip(&r.cmu[1]).map(|(a, b)| a + b).collect()).collect::<Vec<_>>())),
+        (
+            "cmu_total",
+            heldout(
+                &runs.iter().map(|r| r.cmu[0].iter().zip(&r.cmu[1]).map(|(a, b)| a + b).collect()).collect::<Vec<_>>(),
+            ),
+        ),
         ("cl_sim", heldout(&runs.iter().map(RunStreams::cl_sim).collect::<Vec<_>>())),
     ];
     let mut cross_correlation = Vec::new();
@@ -96,16 +101,21 @@ pub fn build(runs: &[RunStreams], remainder: &[Vec<f64>], noise_var: f64, seed: 
             };
             let edges: Vec<f64> = BAND_EDGES_HZ.iter().copied().filter(|f| *f <= 0.5 * sample_hz).collect();
             let bands = ledger::band_shares(&excess, &edges);
-            let dominant = bands.iter().filter(|b| b.share.is_finite()).max_by(|a, b| a.share.total_cmp(&b.share)).map(|b| b.band_hz);
+            let dominant = bands
+                .iter()
+                .filter(|b| b.share.is_finite())
+                .max_by(|a, b| a.share.total_cmp(&b.share))
+                .map(|b| b.band_hz);
             (bands, dominant)
         }
         None => (Vec::new(), None),
     };
 
     // Regimes: blowing off/on, roll rate low/high, upstroke/downstroke.
-    let labels: Vec<String> = ["held roll, no blowing", "held roll, blowing", "rolling, no blowing", "rolling, blowing"]
-        .map(String::from)
-        .to_vec();
+    let labels: Vec<String> =
+        ["held roll, no blowing", "held roll, blowing", "rolling, no blowing", "rolling, blowing"]
+            .map(String::from)
+            .to_vec();
     let rate_threshold = 0.05;
     let bins: Vec<Vec<usize>> = runs
         .iter()

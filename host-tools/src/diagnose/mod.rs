@@ -86,6 +86,19 @@ pub struct Signature {
 /// File name of a model's signature in its folder.
 pub const SIGNATURE_FILE: &str = "diagnosis-signature.json";
 
+/// The built-in model's signature on the default synthetic campaign (models/default, written by
+/// `fit`): the floor used when a diagnosis has no signature of its own sim (nominal models
+/// fitted on the data itself, or a model folder without one). It is the structural error of
+/// this model family on a tunnel like the synthetic one, so on other rigs it is a guess; the
+/// report says so.
+pub const DEFAULT_SIGNATURE_JSON: &str = include_str!("../../../models/default/diagnosis-signature.json");
+
+/// [`DEFAULT_SIGNATURE_JSON`], parsed (an empty signature if it ever fails to parse).
+#[must_use]
+pub fn default_signature() -> Signature {
+    serde_json::from_str(DEFAULT_SIGNATURE_JSON).unwrap_or_default()
+}
+
 impl Signature {
     fn of(&self, key: &str) -> f64 {
         self.explained_to_noise.get(key).copied().unwrap_or(0.0)
@@ -156,7 +169,8 @@ pub fn diagnose(
     let noise_var = regression::difference_noise_var(&base_segments, None);
     let autocorrelation_time = regression::integrated_autocorrelation(&base_segments, 200);
     let min_explained = MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE * noise_var;
-    let first_round = profile_all(&runs, &residuals, &context, autocorrelation_time, noise_var, config.signature.as_ref());
+    let first_round =
+        profile_all(&runs, &residuals, &context, autocorrelation_time, noise_var, config.signature.as_ref());
     let to_noise = |value: f64| value / noise_var.max(f64::MIN_POSITIVE);
     let floor = config.signature.clone().unwrap_or_default();
     let excess = |p: &Profiled| to_noise(p.explained()) - floor.of(p.candidate.name());
@@ -169,7 +183,10 @@ pub fn diagnose(
         let Some(best) = round.iter().find(|p| !named.iter().any(|n| n.candidate == p.candidate)).cloned() else {
             break;
         };
-        if !(best.delta_bic >= MIN_DELTA_BIC && excess(&best) >= min_explained / noise_var.max(f64::MIN_POSITIVE) && best.heldout.shrink() > 0.0) {
+        if !(best.delta_bic >= MIN_DELTA_BIC
+            && excess(&best) >= min_explained / noise_var.max(f64::MIN_POSITIVE)
+            && best.heldout.shrink() > 0.0)
+        {
             break;
         }
         remainder = attribution::subtract(&best, &runs, &remainder, &context);
@@ -192,7 +209,11 @@ pub fn diagnose(
     let min_ratio = MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE;
     let mut sensor_ranked: Vec<&SensorFinding> = sensor
         .iter()
-        .filter(|f| sensor_excess(f) >= min_ratio && f.delta_bic >= MIN_DELTA_BIC && (f.heldout.n == 0 || f.heldout.shrink() > 0.0))
+        .filter(|f| {
+            sensor_excess(f) >= min_ratio
+                && f.delta_bic >= MIN_DELTA_BIC
+                && (f.heldout.n == 0 || f.heldout.shrink() > 0.0)
+        })
         .collect();
     sensor_ranked.sort_by(|a, b| sensor_excess(b).total_cmp(&sensor_excess(a)));
     let sensor_named: Vec<&SensorFinding> = sensor_ranked.into_iter().take(1).collect();
@@ -215,7 +236,8 @@ pub fn diagnose(
             let kind = runs[idx].kind.as_str();
             let one = [base_segments[idx].clone()];
             let g = regression::heldout_gap(&one, &[Vec::new()], &[], &[true]);
-            to_noise(g.mse_before - g.noise_var) - floor.gap_to_noise_by_kind.get(kind).copied().unwrap_or(0.0) >= min_ratio
+            to_noise(g.mse_before - g.noise_var) - floor.gap_to_noise_by_kind.get(kind).copied().unwrap_or(0.0)
+                >= min_ratio
         })
         .collect();
     let own_signature = Signature {
@@ -223,7 +245,10 @@ pub fn diagnose(
             .iter()
             .map(|p| (p.candidate.name().to_owned(), to_noise(p.explained())))
             .chain(sensor.iter().map(|f| {
-                (format!("{}:{}", f.name, f.channel.as_deref().unwrap_or("all")), f.explained.min(1e12) / f.noise_var.max(f64::MIN_POSITIVE))
+                (
+                    format!("{}:{}", f.name, f.channel.as_deref().unwrap_or("all")),
+                    f.explained.min(1e12) / f.noise_var.max(f64::MIN_POSITIVE),
+                )
             }))
             .collect(),
         probe_to_noise: probe_base,
@@ -268,7 +293,12 @@ pub fn diagnose(
         where_.alpha_deg = alphas(&runs, &touched);
         where_.runs = excess_runs.iter().map(|&idx| runs[idx].file.clone()).collect();
         unexplained = Some(Unexplained {
-            description: describe_structure(&runs, &excess_runs, probe_explained - floor.probe_to_noise, first_round.first().map(|p| (p.candidate.name(), excess(p)))),
+            description: describe_structure(
+                &runs,
+                &excess_runs,
+                probe_explained - floor.probe_to_noise,
+                first_round.first().map(|p| (p.candidate.name(), excess(p))),
+            ),
             best_candidate: first_round.first().map(|p| p.candidate.name().to_owned()),
             best_candidate_explained_to_noise: first_round.first().map_or(0.0, excess),
             probe_explained_to_noise: probe_explained - floor.probe_to_noise,
@@ -312,7 +342,11 @@ pub fn diagnose(
         effects,
         unexplained,
         confounded,
-        candidates: first_round.iter().map(result::CandidateSummary::from_profiled(noise_var)).chain(sensor.iter().map(result::CandidateSummary::from_sensor)).collect(),
+        candidates: first_round
+            .iter()
+            .map(result::CandidateSummary::from_profiled(noise_var))
+            .chain(sensor.iter().map(result::CandidateSummary::from_sensor))
+            .collect(),
         sim: match &source {
             SimSource::Given(name) => format!("the given coefficient set ({name})"),
             SimSource::FittedOnTraining => "nominal models fitted on the training part of this dataset".into(),
@@ -385,7 +419,8 @@ fn balance_effect(
     let (mut floor_sum, mut count) = (0.0, 0usize);
     for (run, touched) in runs.iter().zip(&profiled.fit.touched) {
         if *touched {
-            floor_sum += floor.gap_to_noise_by_kind.get(run.kind.as_str()).copied().unwrap_or(0.0).max(0.0) * run.heldout.len() as f64;
+            floor_sum += floor.gap_to_noise_by_kind.get(run.kind.as_str()).copied().unwrap_or(0.0).max(0.0)
+                * run.heldout.len() as f64;
             count += run.heldout.len();
         }
     }
@@ -443,10 +478,14 @@ fn describe_structure(
     probe_share: f64,
     best: Option<(&str, f64)>,
 ) -> String {
-    let kinds: Vec<String> =
-        excess_runs.iter().map(|&idx| format!("{} ({} at {} deg)", runs[idx].file, runs[idx].kind.as_str(), runs[idx].alpha_deg)).collect();
+    let kinds: Vec<String> = excess_runs
+        .iter()
+        .map(|&idx| format!("{} ({} at {} deg)", runs[idx].file, runs[idx].kind.as_str(), runs[idx].alpha_deg))
+        .collect();
     let best = best
-        .map(|(name, excess)| format!("; the best candidate, {name}, explains {excess:.2} noise variances beyond the sim's signature"))
+        .map(|(name, excess)| {
+            format!("; the best candidate, {name}, explains {excess:.2} noise variances beyond the sim's signature")
+        })
         .unwrap_or_default();
     format!(
         "a gap above the noise floor in {} with no candidate that explains it{best}; a generic probe (odd powers of the roll angle, rate nonlinearity, slowly varying gain on the moment) finds {:.2} noise variances of structure",
@@ -480,7 +519,11 @@ fn confounding(
                     a: a.candidate.name().into(),
                     b: b.candidate.name().into(),
                     canonical_correlation: finite(correlation),
-                    experiment: format!("{}; {}", a.candidate.separating_experiment(), b.candidate.separating_experiment()),
+                    experiment: format!(
+                        "{}; {}",
+                        a.candidate.separating_experiment(),
+                        b.candidate.separating_experiment()
+                    ),
                 });
             }
         }

@@ -103,15 +103,7 @@ fn fit_with(segments: &[Segment<'_>], columns: &[Vec<Vec<f64>>], centre: bool) -
     }
     let beta = solve(&xtx, &xtr);
     let explained: f64 = beta.iter().zip(xtr.iter()).map(|(b, v)| b * v).sum();
-    Some(Fit {
-        beta,
-        ssr_base,
-        ssr: (ssr_base - explained).max(0.0),
-        n,
-        n_touched,
-        ssr_base_touched,
-        touched,
-    })
+    Some(Fit { beta, ssr_base, ssr: (ssr_base - explained).max(0.0), n, n_touched, ssr_base_touched, touched })
 }
 
 /// Solves the normal equations with the columns scaled to unit diagonal; a column without
@@ -203,7 +195,13 @@ pub fn heldout_gap(segments: &[Segment<'_>], columns: &[Vec<Vec<f64>>], beta: &[
         }
     }
     let mean = |sum: f64, count: usize| if count == 0 { 0.0 } else { sum / count as f64 };
-    HeldoutGap { mse_before: mean(before, n), mse_after: mean(after, n), noise_var: 0.5 * mean(diff_sq, n_diff), n, floor_var: 0.0 }
+    HeldoutGap {
+        mse_before: mean(before, n),
+        mse_after: mean(after, n),
+        noise_var: 0.5 * mean(diff_sq, n_diff),
+        n,
+        floor_var: 0.0,
+    }
 }
 
 /// Noise variance of a stream from first differences over the training samples (von Neumann):
@@ -234,7 +232,8 @@ pub fn integrated_autocorrelation(segments: &[Segment<'_>], max_lag: usize) -> f
     let mut acov = vec![0.0; max_lag + 1];
     let mut total = 0usize;
     for segment in segments {
-        let values: Vec<f64> = segment.training.clone().map(|i| segment.residual[i]).filter(|v| v.is_finite()).collect();
+        let values: Vec<f64> =
+            segment.training.clone().map(|i| segment.residual[i]).filter(|v| v.is_finite()).collect();
         if values.len() <= max_lag {
             continue;
         }
@@ -249,10 +248,7 @@ pub fn integrated_autocorrelation(segments: &[Segment<'_>], max_lag: usize) -> f
         return 1.0;
     }
     let tau = 1.0
-        + 2.0
-            * (1..=max_lag)
-                .map(|lag| (1.0 - lag as f64 / (max_lag + 1) as f64) * acov[lag] / acov[0])
-                .sum::<f64>();
+        + 2.0 * (1..=max_lag).map(|lag| (1.0 - lag as f64 / (max_lag + 1) as f64) * acov[lag] / acov[0]).sum::<f64>();
     tau.max(1.0)
 }
 
@@ -268,7 +264,9 @@ mod tests {
         let n = 5000;
         let x: Vec<Vec<f64>> = (0..2).map(|_| (0..n).map(|i| (i as f64 * 0.01).sin()).collect()).collect();
         let r: Vec<Vec<f64>> = (0..2)
-            .map(|run| (0..n).map(|i| 0.7 * x[run][i] + run as f64 * 5.0 + 0.01 * (rng.random::<f64>() - 0.5)).collect())
+            .map(|run| {
+                (0..n).map(|i| 0.7 * x[run][i] + run as f64 * 5.0 + 0.01 * (rng.random::<f64>() - 0.5)).collect()
+            })
             .collect();
         let segments: Vec<Segment<'_>> =
             r.iter().map(|res| Segment { residual: res, training: 0..4000, heldout: 4000..n }).collect();

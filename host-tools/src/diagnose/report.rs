@@ -4,8 +4,8 @@
 use crate::plot::{self, Axes, Series};
 use crate::report::{Figure, Report, Section, Table};
 
-use super::result::{Diagnosis, Verdict};
 use super::Evidence;
+use super::result::{Diagnosis, Verdict};
 
 /// Points plotted per time series.
 const PLOT_POINTS: usize = 1500;
@@ -105,7 +105,18 @@ fn ledger_section(diagnosis: &Diagnosis) -> Section {
     ));
     let ledger = &diagnosis.ledger;
     let white = |w: &Option<super::ledger::Whiteness>| {
-        w.as_ref().map_or_else(|| "n/a".to_owned(), |w| format!("Q = {:.1} over {} lags, p = {:.3} ({})", w.q, w.lags, w.p_value, if w.white { "white" } else { "not white" }))
+        w.as_ref().map_or_else(
+            || "n/a".to_owned(),
+            |w| {
+                format!(
+                    "Q = {:.1} over {} lags, p = {:.3} ({})",
+                    w.q,
+                    w.lags,
+                    w.p_value,
+                    if w.white { "white" } else { "not white" }
+                )
+            },
+        )
     };
     paragraphs.push(format!(
         "Whiteness of the held-out balance residual (Ljung-Box, 1 %): before, {}; after the named effects, {}.",
@@ -113,18 +124,31 @@ fn ledger_section(diagnosis: &Diagnosis) -> Section {
         white(&ledger.whiteness_after)
     ));
     let regimes = Table {
-        caption: "Held-out balance residual energy by regime (95 % stationary-bootstrap interval of the mean square)".into(),
+        caption: "Held-out balance residual energy by regime (95 % stationary-bootstrap interval of the mean square)"
+            .into(),
         header: ["regime", "samples", "share", "mean square", "95 % interval"].map(String::from).to_vec(),
         rows: ledger
             .regimes
             .iter()
-            .map(|r| vec![r.label.clone(), r.n_samples.to_string(), format!("{:.3}", r.share), fmt(r.mse), format!("{} - {}", fmt(r.mse_ci95[0]), fmt(r.mse_ci95[1]))])
+            .map(|r| {
+                vec![
+                    r.label.clone(),
+                    r.n_samples.to_string(),
+                    format!("{:.3}", r.share),
+                    fmt(r.mse),
+                    format!("{} - {}", fmt(r.mse_ci95[0]), fmt(r.mse_ci95[1])),
+                ]
+            })
             .collect(),
     };
     let bands = Table {
         caption: "Share of the residual power beyond the white-noise floor, by band".into(),
         header: ["band (Hz)", "share", "RMS"].map(String::from).to_vec(),
-        rows: ledger.bands.iter().map(|b| vec![format!("{:.1} - {:.1}", b.band_hz[0], b.band_hz[1]), format!("{:.3}", b.share), fmt(b.rms)]).collect(),
+        rows: ledger
+            .bands
+            .iter()
+            .map(|b| vec![format!("{:.1} - {:.1}", b.band_hz[0], b.band_hz[1]), format!("{:.3}", b.share), fmt(b.rms)])
+            .collect(),
     };
     let ccf = Table {
         caption: "Residual-input cross-correlation (held-out; positive lag: the input leads; 99 % bound for coloured signals, family-wise over the lags)".into(),
@@ -162,7 +186,12 @@ fn ledger_section(diagnosis: &Diagnosis) -> Section {
             })
             .collect(),
     };
-    Section { heading: "Where the gap lies".into(), paragraphs, tables: vec![regimes, bands, ccf, channels], figures: Vec::new() }
+    Section {
+        heading: "Where the gap lies".into(),
+        paragraphs,
+        tables: vec![regimes, bands, ccf, channels],
+        figures: Vec::new(),
+    }
 }
 
 fn candidates_section(diagnosis: &Diagnosis) -> Section {
@@ -217,10 +246,21 @@ fn plots_section(evidence: &Evidence) -> Section {
         };
         figures.push(Figure {
             file: "residual.svg".into(),
-            caption: format!("Balance residual on the held-out part of {}, before and after the named effects", run.file),
+            caption: format!(
+                "Balance residual on the held-out part of {}, before and after the named effects",
+                run.file
+            ),
             svg: plot::svg(
-                &Axes { title: format!("Residual, {}", run.file), x_label: "t (s)".into(), y_label: "C_l".into(), log_y: false },
-                &[series("measured - sim", &run.residual), series("after the named effects", &evidence.remainder[run_idx])],
+                &Axes {
+                    title: format!("Residual, {}", run.file),
+                    x_label: "t (s)".into(),
+                    y_label: "C_l".into(),
+                    log_y: false,
+                },
+                &[
+                    series("measured - sim", &run.residual),
+                    series("after the named effects", &evidence.remainder[run_idx]),
+                ],
             ),
         });
     }

@@ -71,7 +71,11 @@ pub fn strength(finding: &SensorFinding) -> f64 {
 
 fn segments_of(runs: &[RunStreams], tap: usize) -> Vec<Segment<'_>> {
     runs.iter()
-        .map(|run| Segment { residual: &run.innovation[tap], training: run.training.clone(), heldout: run.heldout.clone() })
+        .map(|run| Segment {
+            residual: &run.innovation[tap],
+            training: run.training.clone(),
+            heldout: run.heldout.clone(),
+        })
         .collect()
 }
 
@@ -85,7 +89,8 @@ fn lag_grid(sample_hz: f64) -> Vec<f64> {
 /// expected pressure through its lag (gap-diagnosis.md section 2.6, the first-order form).
 fn lag_column(run: &RunStreams, tap: usize, tau_s: f64) -> Vec<f64> {
     let expected: Vec<f64> = run.cp[tap].iter().zip(&run.innovation[tap]).map(|(cp, nu)| cp - nu).collect();
-    let held = crate::fit::signals::hold_missing(&expected, expected.iter().copied().find(|v| v.is_finite()).unwrap_or(0.0));
+    let held =
+        crate::fit::signals::hold_missing(&expected, expected.iter().copied().find(|v| v.is_finite()).unwrap_or(0.0));
     let lagged = super::candidates::first_order_lag(&held, tau_s, 1.0 / run.sample_hz);
     lagged.iter().zip(&held).map(|(l, e)| l - e).collect()
 }
@@ -104,7 +109,8 @@ fn lag_findings(runs: &[RunStreams], n_taps: usize) -> Vec<SensorFinding> {
             (0..n_taps)
                 .map(|tap| {
                     let segments = segments_of(runs, tap);
-                    let columns: Vec<Vec<Vec<f64>>> = runs.iter().map(|run| vec![lag_column(run, tap, tau_s)]).collect();
+                    let columns: Vec<Vec<Vec<f64>>> =
+                        runs.iter().map(|run| vec![lag_column(run, tap, tau_s)]).collect();
                     regression::fit_through_origin(&segments, &columns)
                 })
                 .collect()
@@ -177,7 +183,10 @@ fn lag_finding(
         noise_var,
         delta_bic: delta_bic(fit, autocorrelation, k),
         heldout,
-        evidence: format!("innovation of {channels} follows a first-order lag of the expected pressure, tau = {:.1} ms", 1e3 * tau_s),
+        evidence: format!(
+            "innovation of {channels} follows a first-order lag of the expected pressure, tau = {:.1} ms",
+            1e3 * tau_s
+        ),
     }
 }
 
@@ -227,7 +236,11 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
             noise_var,
             delta_bic: f64::INFINITY,
             heldout: regression::HeldoutGap { mse_before: 0.0, mse_after: 0.0, noise_var: 0.0, n: 0, floor_var: 0.0 },
-            evidence: format!("{name} is missing in {:.1} % of the samples (the others in {:.1} %)", 100.0 * missing_fraction, 100.0 * others_fraction),
+            evidence: format!(
+                "{name} is missing in {:.1} % of the samples (the others in {:.1} %)",
+                100.0 * missing_fraction,
+                100.0 * others_fraction
+            ),
         });
     }
     // Stuck: identical raw readings over a long stretch.
@@ -238,7 +251,12 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
             .map(|run| {
                 // After the onset the reading carries no information: explain the innovation there.
                 let onset = run.t_s.iter().position(|t| *t >= stuck_start_s).unwrap_or(run.len());
-                vec![(0..run.len()).map(|idx| if idx >= onset { run.innovation[tap][idx].max(-1e3).min(1e3) } else { 0.0 }).map(|v| if v.is_finite() { v } else { 0.0 }).collect()]
+                vec![
+                    (0..run.len())
+                        .map(|idx| if idx >= onset { run.innovation[tap][idx].max(-1e3).min(1e3) } else { 0.0 })
+                        .map(|v| if v.is_finite() { v } else { 0.0 })
+                        .collect(),
+                ]
             })
             .collect();
         let fit = regression::fit_through_origin(&segments, &columns)?;
@@ -265,14 +283,17 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
         .map(|run| {
             let nu = &run.innovation[tap];
             let big = |idx: usize| nu[idx].is_finite() && nu[idx].abs() > SPIKE_SIGMA * robust_sigma;
-            let quiet = |idx: Option<usize>| idx.is_none_or(|i| !(nu[i].is_finite() && nu[i].abs() > 3.0 * robust_sigma));
+            let quiet =
+                |idx: Option<usize>| idx.is_none_or(|i| !(nu[i].is_finite() && nu[i].abs() > 3.0 * robust_sigma));
             // A spike is isolated: its neighbours are ordinary (a burst is a lag or a step).
-            vec![(0..nu.len())
-                .map(|idx| {
-                    let next = (idx + 1 < nu.len()).then_some(idx + 1);
-                    if big(idx) && quiet(idx.checked_sub(1)) && quiet(next) { nu[idx] } else { 0.0 }
-                })
-                .collect()]
+            vec![
+                (0..nu.len())
+                    .map(|idx| {
+                        let next = (idx + 1 < nu.len()).then_some(idx + 1);
+                        if big(idx) && quiet(idx.checked_sub(1)) && quiet(next) { nu[idx] } else { 0.0 }
+                    })
+                    .collect(),
+            ]
         })
         .collect();
     let spike = regression::fit_through_origin(&segments, &spike_columns);
@@ -301,7 +322,9 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
             noise_var,
             delta_bic: delta,
             heldout,
-            evidence: format!("{name} has {count} innovations beyond {SPIKE_SIGMA} robust sigma (Gaussian tail: {expected:.1})"),
+            evidence: format!(
+                "{name} has {count} innovations beyond {SPIKE_SIGMA} robust sigma (Gaussian tail: {expected:.1})"
+            ),
         });
     }
     let fit = bias?;
@@ -327,7 +350,8 @@ fn gaussian_tail(z: f64) -> f64 {
     // Abramowitz & Stegun 7.1.26 for erfc, plenty for a count threshold.
     let x = z / std::f64::consts::SQRT_2;
     let t = 1.0 / (1.0 + 0.327_591_1 * x);
-    let poly = t * (0.254_829_592 + t * (-0.284_496_736 + t * (1.421_413_741 + t * (-1.453_152_027 + t * 1.061_405_429))));
+    let poly =
+        t * (0.254_829_592 + t * (-0.284_496_736 + t * (1.421_413_741 + t * (-1.453_152_027 + t * 1.061_405_429))));
     poly * (-x * x).exp()
 }
 
@@ -411,9 +435,7 @@ fn bias_step(runs: &[RunStreams], tap: usize) -> (f64, Vec<Vec<Vec<f64>>>) {
         }
     }
     let onset = best.0;
-    let columns = runs
-        .iter()
-        .map(|run| vec![run.t_s.iter().map(|t| if *t >= onset { 1.0 } else { 0.0 }).collect()])
-        .collect();
+    let columns =
+        runs.iter().map(|run| vec![run.t_s.iter().map(|t| if *t >= onset { 1.0 } else { 0.0 }).collect()]).collect();
     (onset, columns)
 }

@@ -88,7 +88,9 @@ impl RunStreams {
     /// The sim's total moment at each sample.
     #[must_use]
     pub fn cl_sim(&self) -> Vec<f64> {
-        (0..self.len()).map(|idx| self.cl_egk[idx] + self.cl_afc_side[0][idx] + self.cl_afc_side[1][idx] + self.coupling[idx]).collect()
+        (0..self.len())
+            .map(|idx| self.cl_egk[idx] + self.cl_afc_side[0][idx] + self.cl_afc_side[1][idx] + self.coupling[idx])
+            .collect()
     }
 
     /// The sim's plant moment (both jets).
@@ -167,7 +169,11 @@ fn build_run(run: &Run, set: &CoefficientSet, split: &Split) -> RunStreams {
     let residual: Vec<f64> = (0..n)
         .map(|idx| {
             let measured = cl_measured[idx];
-            if measured.is_finite() { measured - (cl_egk[idx] + afc_port[idx] + afc_stbd[idx] + coupling[idx]) } else { f64::NAN }
+            if measured.is_finite() {
+                measured - (cl_egk[idx] + afc_port[idx] + afc_stbd[idx] + coupling[idx])
+            } else {
+                f64::NAN
+            }
         })
         .collect();
 
@@ -260,7 +266,8 @@ fn innovations(run: &Run, set: &CoefficientSet, dt_s: f64) -> Vec<Vec<f64>> {
                 out[tap].push(f64::NAN);
                 continue;
             }
-            let expected = (0..PRESSURE_RANK).map(|col| f(model.c[tap][col]) * predicted[col]).sum::<f64>() + f(model.cp_mean[tap]);
+            let expected = (0..PRESSURE_RANK).map(|col| f(model.c[tap][col]) * predicted[col]).sum::<f64>()
+                + f(model.cp_mean[tap]);
             let nu = measured - expected;
             out[tap].push(nu);
             if nu.abs() <= GATE_SIGMA * f(model.innovation_std[tap]).max(f64::MIN_POSITIVE) {
@@ -276,4 +283,3 @@ fn innovations(run: &Run, set: &CoefficientSet, dt_s: f64) -> Vec<Vec<f64>> {
     }
     out
 }
-

@@ -19,8 +19,8 @@ use estimator_core::CoefficientSet;
 use firmware_sim::campaign::{Scenario, mix_seed};
 use firmware_sim::dataset::Dataset;
 use firmware_sim::tunnel::effects::{
-    ActuatorDelay, ActuatorLag, BalanceResonance, BiasDrift, Coupling, CubicStiffness, Effects, FaultMode,
-    GravityTare, InertialTare, PressureFault, PressureLag, QFluctuation, RollDamping, VortexLag,
+    ActuatorDelay, ActuatorLag, BalanceResonance, BiasDrift, Coupling, CubicStiffness, Effects, FaultMode, GravityTare,
+    InertialTare, PressureFault, PressureLag, QFluctuation, RollDamping, VortexLag,
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -173,12 +173,7 @@ fn clean_model(config: &CampaignConfig, alpha_deg: f64, models: &Models) -> Opti
 /// Clean models and their signatures, per angle of attack.
 type Models = Mutex<HashMap<u64, (CoefficientSet, Signature)>>;
 
-fn run_case(
-    config: &CampaignConfig,
-    id: usize,
-    class: &str,
-    models: &Models,
-) -> Option<CaseRecord> {
+fn run_case(config: &CampaignConfig, id: usize, class: &str, models: &Models) -> Option<CaseRecord> {
     let mut rng = ChaCha8Rng::seed_from_u64(mix_seed(config.seed, 7_000 + id as u64));
     let alpha_deg = config.alphas_deg[rng.random_range(0..config.alphas_deg.len())];
     let [low, high] = config.ratio_range;
@@ -257,7 +252,8 @@ fn draw_effect(class: &str, base: &Scenario, rng: &mut ChaCha8Rng) -> (Effects, 
     let mut effects = Effects::default();
     let mut channel = None;
     let sign = |rng: &mut ChaCha8Rng| if rng.random::<bool>() { 1.0 } else { -1.0 };
-    let log_uniform = |rng: &mut ChaCha8Rng, low: f64, high: f64| (low.ln() + rng.random::<f64>() * (high / low).ln()).exp();
+    let log_uniform =
+        |rng: &mut ChaCha8Rng, low: f64, high: f64| (low.ln() + rng.random::<f64>() * (high / low).ln()).exp();
     match class {
         "actuator_delay" => effects.actuator_delay = Some(ActuatorDelay { delay_s: 0.02 }),
         "actuator_lag" => effects.actuator_lag = Some(ActuatorLag { tau_s: 0.03 }),
@@ -301,7 +297,9 @@ fn draw_effect(class: &str, base: &Scenario, rng: &mut ChaCha8Rng) -> (Effects, 
             let walk = if rng.random::<bool>() { 2e-5 } else { 0.0 };
             effects.bias_drift = Some(BiasDrift { rate_per_s: 2e-5 * sign(rng), walk_per_sqrt_s: walk });
         }
-        "q_fluctuation" => effects.q_fluctuation = Some(QFluctuation { rel_std: 0.03, tau_s: log_uniform(rng, 0.2, 2.0) }),
+        "q_fluctuation" => {
+            effects.q_fluctuation = Some(QFluctuation { rel_std: 0.03, tau_s: log_uniform(rng, 0.2, 2.0) })
+        }
         "cubic_stiffness" => effects.cubic_stiffness = Some(CubicStiffness { gain: 0.002 * sign(rng) }),
         _ => {}
     }
@@ -345,7 +343,13 @@ pub fn effect_ratio(class: &str, base: &Scenario, clean: &Dataset, real: &Datase
 
 /// Scales the effect so that its ratio meets `target` (linearly for amplitude parameters, by
 /// bisection in log space for delays and time constants), and returns the ratio reached.
-fn calibrate(class: &str, base: &Scenario, clean: &Dataset, mut effects: Effects, target: f64) -> Option<(Effects, Option<f64>)> {
+fn calibrate(
+    class: &str,
+    base: &Scenario,
+    clean: &Dataset,
+    mut effects: Effects,
+    target: f64,
+) -> Option<(Effects, Option<f64>)> {
     let measure = |effects: &Effects| -> Option<Option<f64>> {
         let mut scenario = base.clone();
         scenario.effects = effects.clone();
@@ -383,7 +387,12 @@ fn calibrate(class: &str, base: &Scenario, clean: &Dataset, mut effects: Effects
         "actuator_lag" => bisect(&mut effects, &|e, v| e.actuator_lag = Some(ActuatorLag { tau_s: v }), 5e-4, 1.0)?,
         "pressure_lag" => {
             let channels = effects.pressure_lag.as_ref().map(|p| p.channels.clone()).unwrap_or_default();
-            bisect(&mut effects, &move |e, v| e.pressure_lag = Some(PressureLag { tau_s: v, channels: channels.clone() }), 2e-4, 0.5)?
+            bisect(
+                &mut effects,
+                &move |e, v| e.pressure_lag = Some(PressureLag { tau_s: v, channels: channels.clone() }),
+                2e-4,
+                0.5,
+            )?
         }
         _ => {
             let reference = measure(&effects)?.unwrap_or(0.0);

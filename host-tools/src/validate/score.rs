@@ -85,10 +85,8 @@ fn ratio_of(record: &CaseRecord) -> f64 {
 #[must_use]
 pub fn summarise(records: &[CaseRecord]) -> Summary {
     let none: Vec<&CaseRecord> = records.iter().filter(|r| r.class == "none").collect();
-    let vocab_ge1: Vec<&CaseRecord> = records
-        .iter()
-        .filter(|r| r.class != "none" && !outside_vocabulary(&r.class) && ratio_of(r) >= 1.0)
-        .collect();
+    let vocab_ge1: Vec<&CaseRecord> =
+        records.iter().filter(|r| r.class != "none" && !outside_vocabulary(&r.class) && ratio_of(r) >= 1.0).collect();
     let outside: Vec<&CaseRecord> = records.iter().filter(|r| outside_vocabulary(&r.class)).collect();
     let mut per_effect = BTreeMap::new();
     for class in CLASSES.iter().filter(|c| **c != "none" && !outside_vocabulary(c)) {
@@ -150,13 +148,21 @@ pub fn report(records: &[CaseRecord], summary: &Summary, described: &str) -> cra
         header: ["criterion", "goal", "measured"].map(String::from).to_vec(),
         rows: vec![
             vec!["no effect: wrong effect named".into(), "<= 5 %".into(), pct(summary.none_false_name_rate)],
-            vec!["single effect, ratio >= 1: right effect first".into(), ">= 95 %".into(), pct(summary.vocabulary_top1_at_ratio_ge_1)],
+            vec![
+                "single effect, ratio >= 1: right effect first".into(),
+                ">= 95 %".into(),
+                pct(summary.vocabulary_top1_at_ratio_ge_1),
+            ],
             vec![
                 "  worst single effect".into(),
                 ">= 90 %".into(),
                 pct(summary.per_effect_top1_at_ratio_ge_1.values().flatten().copied().reduce(f64::min)),
             ],
-            vec!["outside the vocabulary: unattributed".into(), ">= 80 %".into(), pct(summary.outside_unattributed_rate)],
+            vec![
+                "outside the vocabulary: unattributed".into(),
+                ">= 80 %".into(),
+                pct(summary.outside_unattributed_rate),
+            ],
             vec![
                 "median held-out shrink, ratio >= 1".into(),
                 ">= 0.6".into(),
@@ -174,17 +180,25 @@ pub fn report(records: &[CaseRecord], summary: &Summary, described: &str) -> cra
             ],
         ],
     };
-    let bins = RATIO_BINS.map(|(lo, hi)| if hi.is_finite() { format!("{lo:.0}-{hi:.0}") } else { format!(">= {lo:.0} (dead channel)") });
+    let bins = RATIO_BINS
+        .map(|(lo, hi)| if hi.is_finite() { format!("{lo:.0}-{hi:.0}") } else { format!(">= {lo:.0} (dead channel)") });
     let by_ratio = Table {
         caption: "Right / cases, by injected class and effect RMS over noise RMS".into(),
-        header: std::iter::once("class".to_owned()).chain(bins.iter().cloned()).chain(std::iter::once(">= 1".to_owned())).collect(),
+        header: std::iter::once("class".to_owned())
+            .chain(bins.iter().cloned())
+            .chain(std::iter::once(">= 1".to_owned()))
+            .collect(),
         rows: summary
             .accuracy_by_ratio
             .iter()
             .map(|(class, cells)| {
                 let ge1 = summary.per_effect_top1_at_ratio_ge_1.get(class).copied().flatten();
                 std::iter::once(class.clone())
-                    .chain(cells.iter().map(|(right, total)| if *total == 0 { "-".into() } else { format!("{right}/{total}") }))
+                    .chain(
+                        cells
+                            .iter()
+                            .map(|(right, total)| if *total == 0 { "-".into() } else { format!("{right}/{total}") }),
+                    )
                     .chain(std::iter::once(pct(ge1)))
                     .collect()
             })
@@ -194,7 +208,8 @@ pub fn report(records: &[CaseRecord], summary: &Summary, described: &str) -> cra
     said.sort();
     said.dedup();
     let confusion = Table {
-        caption: "Confusion matrix: injected class (rows) against the first named effect or the verdict (columns)".into(),
+        caption: "Confusion matrix: injected class (rows) against the first named effect or the verdict (columns)"
+            .into(),
         header: std::iter::once("injected".to_owned()).chain(said.iter().cloned()).collect(),
         rows: summary
             .confusion
@@ -208,7 +223,9 @@ pub fn report(records: &[CaseRecord], summary: &Summary, described: &str) -> cra
     };
     let cases = Table {
         caption: "Every case".into(),
-        header: ["id", "class", "alpha (deg)", "ratio", "verdict", "named", "shrink", "right"].map(String::from).to_vec(),
+        header: ["id", "class", "alpha (deg)", "ratio", "verdict", "named", "shrink", "right"]
+            .map(String::from)
+            .to_vec(),
         rows: records
             .iter()
             .map(|r| {
@@ -233,7 +250,10 @@ pub fn report(records: &[CaseRecord], summary: &Summary, described: &str) -> cra
             Section {
                 heading: "Accuracy".into(),
                 paragraphs: vec![summary.shrink_quartiles.map_or_else(String::new, |q| {
-                    format!("Held-out shrink of the right first effect at ratio >= 1: quartiles {:.2} / {:.2} / {:.2}.", q[0], q[1], q[2])
+                    format!(
+                        "Held-out shrink of the right first effect at ratio >= 1: quartiles {:.2} / {:.2} / {:.2}.",
+                        q[0], q[1], q[2]
+                    )
                 })],
                 tables: vec![by_ratio, confusion],
                 ..Section::default()

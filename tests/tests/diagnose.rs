@@ -1,0 +1,131 @@
+//! The sim-to-real gap diagnosis (issue 7, shared/spec/diagnosis.md): the contract's JSON,
+//! named effects on recordings with a known effect, nothing named on clean ones, and a small
+//! fixed slice of the blind campaign.
+
+use std::sync::OnceLock;
+
+use estimator_core::CoefficientSet;
+use firmware_sim::campaign::Scenario;
+use firmware_sim::dataset::Dataset;
+use firmware_sim::tunnel::effects::{Effects, FaultMode, InertialTare, PressureFault};
+use host_tools::diagnose::{DiagnoseConfig, Signature, diagnose, signature};
+use host_tools::fit::pipeline::{FitConfig, fit_dataset};
+use host_tools::validate::{CampaignConfig, effect_ratio, run_campaign, score};
+
+/// Runs of 20 s at one angle of attack (roll, actuation, roll+actuation).
+fn scenario(seed: u64) -> Scenario {
+    Scenario { seed, duration_s: 20.0, alphas_deg: vec![10.0], ..Scenario::default() }
+}
+
+/// The sim: fitted on a clean recording (40 s runs, another seed), with its signature.
+fn clean_model() -> &'static (CoefficientSet, Signature) {
+    static MODEL: OnceLock<(CoefficientSet, Signature)> = OnceLock::new();
+    MODEL.get_or_init(|| {
+        let clean = Scenario { duration_s: 40.0, ..scenario(101) }.simulate(&|| {}).expect("simulates");
+        let set = fit_dataset(&clean, &FitConfig::default(), &|_| {}).expect("fits").set;
+        let signature = signature(&clean, &set, FitConfig::default().split).expect("signature");
+        (set, signature)
+    })
+}
+
+fn record(effects: Effects) -> Dataset {
+    let mut scenario = scenario(7);
+    scenario.effects = effects;
+    let mut dataset = scenario.simulate(&|| {}).expect("simulates");
+    dataset.extra.clear();
+    dataset
+}
+
+fn run(dataset: &Dataset) -> host_tools::diagnose::result::Diagnosis {
+    let (set, signature) = clean_model();
+    let config = DiagnoseConfig { signature: Some(signature.clone()), ..DiagnoseConfig::default() };
+    diagnose(dataset, Some((set, "clean fit".into())), &config, &|_| {}).expect("diagnoses").0
+}
+
+/// Every number in a JSON value is finite (serde_json writes NaN and infinities as null, so a
+/// null where the contract has a number would show a non-finite value).
+fn assert_contract_numbers(value: &serde_json::Value, path: &str) {
+    match value {
+        serde_json::Value::Number(n) => assert!(n.as_f64().is_some_and(f64::is_finite), "{path}"),
+        serde_json::Value::Array(items) => {
+            items.iter().enumerate().for_each(|(i, v)| assert_contract_numbers(v, &format!("{path}[{i}]")));
+        }
+        serde_json::Value::Object(map) => {
+            map.iter().for_each(|(k, v)| assert_contract_numbers(v, &format!("{path}.{k}")))
+        }
+        _ => {}
+    }
+}
+
+/// A recording without any effect: nothing is named.
+#[test]
+fn clean_recording_names_no_effect() {
+    let diagnosis = run(&record(Effects::default()));
+    assert!(diagnosis.effects.is_empty(), "{:?}", diagnosis.effects);
+    assert_ne!(diagnosis.verdict.as_str(), "effect");
+}
+
+/// An untared inertial reaction at a few times the balance noise: named first, with its
+/// inertia, and the held-out gap shrinks; the JSON has the contract's fields, all finite.
+#[test]
+fn inertial_tare_is_named_with_its_inertia_and_the_gap_shrinks() {
+    let ixx_kgm2 = 4e-5;
+    let effects = Effects { inertial_tare: Some(InertialTare { ixx_kgm2 }), ..Effects::default() };
+    let dataset = record(effects.clone());
+    let ratio = effect_ratio("inertial_tare", &scenario(7), &record(Effects::default()), &dataset).unwrap();
+    assert!(ratio > 1.5, "the test's effect must stand above the noise: {ratio}");
+    let diagnosis = run(&dataset);
+    let json = serde_json::to_value(&diagnosis).unwrap();
+    for key in ["verdict", "gap", "where", "effects"] {
+        assert!(json.get(key).is_some(), "{key}");
+    }
+    for key in ["heldout_rms", "noise_rms"] {
+        assert!(json["gap"].get(key).is_some(), "gap.{key}");
+    }
+    assert_contract_numbers(&json["gap"], "gap");
+    assert_contract_numbers(&json["effects"], "effects");
+    assert_eq!(diagnosis.verdict.as_str(), "effect");
+    let top = &diagnosis.effects[0];
+    assert_eq!(top.name, "inertial_tare", "{:?}", diagnosis.effects);
+    assert_eq!(diagnosis.where_.block.as_deref(), Some("balance"));
+    let fitted = top.params["ixx_kgm2"].as_f64().unwrap();
+    assert!((fitted / ixx_kgm2 - 1.0).abs() < 0.3, "fitted inertia {fitted} vs {ixx_kgm2}");
+    assert!(top.shrink > 0.5 && top.shrink_total > 0.3, "{top:?}");
+    assert!((top.shrink - (1.0 - top.heldout_rms_after / top.heldout_rms_before)).abs() < 1e-12);
+}
+
+/// A dead pressure channel: `pressure_fault` in the sensor block, naming the channel.
+#[test]
+fn dead_pressure_channel_is_named_with_its_channel() {
+    let fault = PressureFault { channel: 5, mode: FaultMode::Dead, value: 0.0, spike_rate_hz: 0.0, start_s: 6.0 };
+    let diagnosis = run(&record(Effects { pressure_fault: Some(fault), ..Effects::default() }));
+    assert_eq!(diagnosis.effects.first().map(|e| e.name.as_str()), Some("pressure_fault"));
+    assert_eq!(diagnosis.where_.block.as_deref(), Some("sensor"));
+    assert_eq!(diagnosis.where_.channel.as_deref(), Some("cp05"));
+}
+
+/// A small fixed slice of the blind campaign: the truth is sealed, the scorer reads it after
+/// the diagnosis, no effect is named on the clean case, and the summary counts every case.
+#[test]
+fn blind_campaign_slice_runs_and_scores() {
+    let config = CampaignConfig {
+        cases: 3,
+        seed: 5,
+        duration_s: 20.0,
+        alphas_deg: vec![10.0],
+        ratio_range: [2.0, 4.0],
+        classes: vec!["none".into(), "inertial_tare".into(), "pressure_fault".into()],
+        keep: None,
+    };
+    let records = run_campaign(&config, &|| {});
+    assert_eq!(records.len(), 3);
+    for record in &records {
+        assert_eq!(record.truth_sha256, score::sha256_hex(record.truth.as_bytes()));
+        assert_eq!(record.correct, score::is_correct(record));
+    }
+    let summary = score::summarise(&records);
+    assert_eq!(summary.cases, 3);
+    assert_eq!(summary.none_false_name_rate, Some(0.0));
+    let right = records.iter().filter(|r| r.correct).count();
+    assert!(right >= 2, "{records:#?}");
+}
