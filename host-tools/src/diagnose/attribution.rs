@@ -58,7 +58,10 @@ pub fn profile(
 ) -> Option<Profiled> {
     let segments = segments(runs, residuals);
     let sample_hz = runs.first()?.sample_hz;
-    let grid = candidate.grid(sample_hz);
+    let mut grid = candidate.grid(sample_hz);
+    if candidate == Candidate::VortexLag {
+        grid.retain(|hyper| hyper.iter().all(|(_, tau_s)| *tau_s >= context.slow_tau_min_s));
+    }
     let fits: Vec<(Vec<(&'static str, f64)>, Fit)> = grid
         .par_iter()
         .filter_map(|hyper| {

@@ -194,6 +194,9 @@ pub struct Context<'a> {
     pub cmu_ref: f64,
     /// Number of runs (per-run columns).
     pub n_runs: usize,
+    /// Shortest time constant of the vortex-lag candidate, s: twice the sim's own eGK lag, so
+    /// that the candidate is a slower state, not the eGK's (or a rate damping) again.
+    pub slow_tau_min_s: f64,
 }
 
 /// The regression columns of `candidate` at grid point `hyper` for run number `run_idx`; every

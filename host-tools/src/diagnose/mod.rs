@@ -161,6 +161,10 @@ pub fn diagnose(
         half_span_time_s: dataset.wing.span_m / (2.0 * dataset.tunnel.u_inf_mps),
         cmu_ref: runs.iter().flat_map(|run| run.cmu.iter().flatten()).copied().fold(0.0, f64::max),
         n_runs: runs.len(),
+        slow_tau_min_s: runs
+            .iter()
+            .map(|run| 2.0 * f64::from(estimator_core::egk::params_at(&set, run.alpha_deg as f32).tau1_s))
+            .fold(0.05, f64::max),
     };
 
     progress("profiling the balance candidates");
@@ -391,6 +395,21 @@ fn profile_all(
     // qualifies (subtracting floors measured on other data would add their noise to the ranking).
     let _ = (noise_var, signature);
     all.sort_by(|a, b| b.delta_bic.total_cmp(&a.delta_bic));
+    // Candidates the evidence cannot tell apart from the leader (within MIN_DELTA_BIC): the one
+    // with the fewest parameters leads (the pair is reported as confounded).
+    if let Some(best) = all.first().map(|p| p.delta_bic) {
+        let n_runs = runs.len();
+        let k = |p: &Profiled| p.candidate.n_columns(n_runs) + p.hyper.len();
+        if let Some((idx, _)) = all
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| p.delta_bic >= best - MIN_DELTA_BIC)
+            .min_by(|a, b| k(a.1).cmp(&k(b.1)).then(b.1.delta_bic.total_cmp(&a.1.delta_bic)))
+        {
+            let simplest = all.remove(idx);
+            all.insert(0, simplest);
+        }
+    }
     all
 }
 

@@ -170,8 +170,7 @@ impl HeldoutGap {
 #[must_use]
 pub fn heldout_gap(segments: &[Segment<'_>], columns: &[Vec<Vec<f64>>], beta: &[f64], touched: &[bool]) -> HeldoutGap {
     let (mut before, mut after, mut n) = (0.0, 0.0, 0usize);
-    let mut diff_sq = 0.0;
-    let mut n_diff = 0usize;
+    let mut differences = Vec::new();
     for ((segment, cols), &is_touched) in segments.iter().zip(columns).zip(touched) {
         if !is_touched {
             continue;
@@ -188,8 +187,7 @@ pub fn heldout_gap(segments: &[Segment<'_>], columns: &[Vec<Vec<f64>>], beta: &[
             after += (r - effect) * (r - effect);
             n += 1;
             if let Some(prev) = last {
-                diff_sq += (r - prev) * (r - prev);
-                n_diff += 1;
+                differences.push(r - prev);
             }
             last = Some(r);
         }
@@ -198,18 +196,36 @@ pub fn heldout_gap(segments: &[Segment<'_>], columns: &[Vec<Vec<f64>>], beta: &[
     HeldoutGap {
         mse_before: mean(before, n),
         mse_after: mean(after, n),
-        noise_var: 0.5 * mean(diff_sq, n_diff),
+        noise_var: robust_difference_var(&mut differences),
         n,
         floor_var: 0.0,
     }
 }
 
+/// `sigma^2` from first differences `d` of a white noise under a smooth signal: `d` has
+/// variance `2 sigma^2`; its scale is taken robustly (1.4826 times the median absolute
+/// deviation, Hampel 1974) so that spikes and steps, which are gap, are not counted as noise.
+#[must_use]
+pub fn robust_difference_var(differences: &mut [f64]) -> f64 {
+    if differences.is_empty() {
+        return 0.0;
+    }
+    let mid = differences.len() / 2;
+    let median = *differences.select_nth_unstable_by(mid, f64::total_cmp).1;
+    for d in differences.iter_mut() {
+        *d = (*d - median).abs();
+    }
+    let mad = *differences.select_nth_unstable_by(mid, f64::total_cmp).1;
+    let scale = 1.4826 * mad;
+    0.5 * scale * scale
+}
+
 /// Noise variance of a stream from first differences over the training samples (von Neumann):
-/// a white measurement noise of variance `s^2` gives `E[(r_k - r_{k-1})^2] = 2 s^2` while a
-/// smooth gap adds almost nothing.
+/// a white measurement noise of variance `s^2` gives differences of variance `2 s^2` while a
+/// smooth gap adds almost nothing; the scale is robust ([`robust_difference_var`]).
 #[must_use]
 pub fn difference_noise_var(segments: &[Segment<'_>], touched: Option<&[bool]>) -> f64 {
-    let (mut sum, mut count) = (0.0, 0usize);
+    let mut differences = Vec::new();
     for (idx, segment) in segments.iter().enumerate() {
         if touched.is_some_and(|t| !t[idx]) {
             continue;
@@ -217,12 +233,11 @@ pub fn difference_noise_var(segments: &[Segment<'_>], touched: Option<&[bool]>) 
         for i in segment.training.clone().skip(1) {
             let (a, b) = (segment.residual[i], segment.residual[i - 1]);
             if a.is_finite() && b.is_finite() {
-                sum += (a - b) * (a - b);
-                count += 1;
+                differences.push(a - b);
             }
         }
     }
-    if count == 0 { 0.0 } else { 0.5 * sum / count as f64 }
+    robust_difference_var(&mut differences)
 }
 
 /// Integrated autocorrelation time of the centred training residual (Bartlett window over
