@@ -121,26 +121,33 @@ pub fn subtract(
         .collect()
 }
 
-/// Columns of the structure probe: shapes outside every candidate's span that a real gap
-/// often has (odd static nonlinearity in the roll angle, rate nonlinearity, a slowly varying
-/// gain on the whole moment). Used only to say that something remains, never to name it.
+/// Groups of the structure probe: shapes outside every candidate's span that a real gap often
+/// has. Used only to say that something remains, never to name it; each group is compared
+/// with its own floor in the sim's signature.
+pub const PROBE_GROUPS: [&str; 2] = ["static_nonlinearity", "slow_gain"];
+
+/// Columns of one probe group (see [`PROBE_GROUPS`]): odd powers of the roll angle, rate
+/// nonlinearity and the eGK moment's growth with the angle (`static_nonlinearity`); the sim's
+/// moment times Legendre polynomials of time per run, a slowly varying gain (`slow_gain`).
 #[must_use]
-pub fn probe_columns(runs: &[RunStreams]) -> Vec<Vec<Vec<f64>>> {
+pub fn probe_columns(runs: &[RunStreams], group: &str) -> Vec<Vec<Vec<f64>>> {
     let n_runs = runs.len();
     runs.iter()
         .enumerate()
         .map(|(run_idx, run)| {
             let n = run.len();
+            if group == "static_nonlinearity" {
+                return vec![
+                    run.phi_rad.iter().map(|phi| phi.powi(3)).collect::<Vec<f64>>(),
+                    run.phi_rad.iter().map(|phi| phi.powi(5)).collect(),
+                    run.phi_dot_rad_s.iter().map(|rate| rate * rate.abs()).collect(),
+                    run.phi_dot_rad_s.iter().map(|rate| (rate / 0.2).tanh()).collect(),
+                    run.phi_rad.iter().zip(&run.cl_egk).map(|(phi, cl)| cl * phi * phi).collect(),
+                ];
+            }
             let sim = run.cl_sim();
             let duration = run.t_s.last().copied().unwrap_or(1.0).max(f64::MIN_POSITIVE);
-            let mut cols = vec![
-                run.phi_rad.iter().map(|phi| phi.powi(3)).collect::<Vec<f64>>(),
-                run.phi_rad.iter().map(|phi| phi.powi(5)).collect(),
-                run.phi_dot_rad_s.iter().map(|rate| rate * rate.abs()).collect(),
-                run.phi_dot_rad_s.iter().map(|rate| (rate / 0.2).tanh()).collect(),
-                run.phi_rad.iter().zip(&run.cl_egk).map(|(phi, cl)| cl * phi * phi).collect(),
-            ];
-            // Slow gain: the sim's moment times Legendre polynomials of time, per run.
+            let mut cols = Vec::new();
             for run_slot in 0..n_runs {
                 for degree in 1..=4 {
                     cols.push(if run_slot == run_idx {

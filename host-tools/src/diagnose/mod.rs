@@ -77,8 +77,9 @@ pub struct Signature {
     /// Per candidate (sensor candidates keyed `name:channel`), explained mean square over the
     /// noise variance.
     pub explained_to_noise: BTreeMap<String, f64>,
-    /// What the structure probe explains of the residual, over the noise variance.
-    pub probe_to_noise: f64,
+    /// What each group of the structure probe explains of the residual, over the noise
+    /// variance.
+    pub probe_to_noise: BTreeMap<String, f64>,
     /// Gap beyond noise per kind of run (mean square over the noise variance).
     pub gap_to_noise_by_kind: BTreeMap<String, f64>,
 }
@@ -199,12 +200,24 @@ pub fn diagnose(
     }
 
     progress("probing the remainder and the pressure channels");
-    let probe_of = |residuals: &[Vec<f64>]| {
+    let probe_of = |residuals: &[Vec<f64>]| -> BTreeMap<String, f64> {
         let segments = attribution::segments(&runs, residuals);
-        regression::fit(&segments, &attribution::probe_columns(&runs)).map_or(0.0, |fit| fit.explained_per_sample())
+        attribution::PROBE_GROUPS
+            .iter()
+            .map(|group| {
+                let explained = regression::fit(&segments, &attribution::probe_columns(&runs, group))
+                    .map_or(0.0, |fit| fit.explained_per_sample());
+                ((*group).to_owned(), to_noise(explained))
+            })
+            .collect()
     };
-    let probe_base = to_noise(probe_of(&residuals));
-    let probe_explained = if named.is_empty() { probe_base } else { to_noise(probe_of(&remainder)) };
+    let probe_base = probe_of(&residuals);
+    let probe_now = if named.is_empty() { probe_base.clone() } else { probe_of(&remainder) };
+    // Structure beyond the floor, in the group that finds most.
+    let probe_explained = probe_now
+        .iter()
+        .map(|(group, value)| value - floor.probe_to_noise.get(group).copied().unwrap_or(0.0))
+        .fold(0.0, f64::max);
     let sensor = sensor::findings(&runs);
     let sensor_excess = |f: &SensorFinding| {
         let key = format!("{}:{}", f.name, f.channel.as_deref().unwrap_or("all"));
@@ -263,7 +276,7 @@ pub fn diagnose(
     let sensor_strength = sensor_named.first().map_or(0.0, |f| sensor_excess(f));
     let remainder_structured = named
         .first()
-        .is_some_and(|top| probe_explained - floor.probe_to_noise >= min_ratio.max(MAX_REMAINDER_SHARE * excess(top)));
+        .is_some_and(|top| probe_explained >= min_ratio.max(MAX_REMAINDER_SHARE * excess(top)));
 
     let mut effects = Vec::new();
     let mut where_ = Where::default();
@@ -300,12 +313,12 @@ pub fn diagnose(
             description: describe_structure(
                 &runs,
                 &excess_runs,
-                probe_explained - floor.probe_to_noise,
+                probe_explained,
                 first_round.first().map(|p| (p.candidate.name(), excess(p))),
             ),
             best_candidate: first_round.first().map(|p| p.candidate.name().to_owned()),
             best_candidate_explained_to_noise: first_round.first().map_or(0.0, excess),
-            probe_explained_to_noise: probe_explained - floor.probe_to_noise,
+            probe_explained_to_noise: probe_explained,
         });
     } else {
         verdict = Verdict::None;
