@@ -272,11 +272,10 @@ pub fn diagnose(
         gap_to_noise_by_kind: gap_by_kind,
     };
 
-    let balance_strength = named.first().map_or(0.0, |p| excess(p));
+    let balance_strength = named.first().map_or(0.0, &excess);
     let sensor_strength = sensor_named.first().map_or(0.0, |f| sensor_excess(f));
-    let remainder_structured = named
-        .first()
-        .is_some_and(|top| probe_explained >= min_ratio.max(MAX_REMAINDER_SHARE * excess(top)));
+    let remainder_structured =
+        named.first().is_some_and(|top| probe_explained >= min_ratio.max(MAX_REMAINDER_SHARE * excess(top)));
 
     let mut effects = Vec::new();
     let mut where_ = Where::default();

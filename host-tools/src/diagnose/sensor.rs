@@ -253,7 +253,7 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
                 let onset = run.t_s.iter().position(|t| *t >= stuck_start_s).unwrap_or(run.len());
                 vec![
                     (0..run.len())
-                        .map(|idx| if idx >= onset { run.innovation[tap][idx].max(-1e3).min(1e3) } else { 0.0 })
+                        .map(|idx| if idx >= onset { run.innovation[tap][idx].clamp(-1e3, 1e3) } else { 0.0 })
                         .map(|v| if v.is_finite() { v } else { 0.0 })
                         .collect(),
                 ]

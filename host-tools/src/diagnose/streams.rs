@@ -252,7 +252,7 @@ fn innovations(run: &Run, set: &CoefficientSet, dt_s: f64) -> Vec<Vec<f64>> {
     let cmu = [hold_missing(&run.channels.cmu_port, 0.0), hold_missing(&run.channels.cmu_stbd, 0.0)];
     let f = |value: f32| f64::from(value);
     let mut modes = [0.0f64; PRESSURE_RANK];
-    let mut out = vec![Vec::with_capacity(n); N_TAPS];
+    let mut out: Vec<Vec<f64>> = (0..N_TAPS).map(|_| Vec::with_capacity(n)).collect();
     for idx in 0..n {
         let inputs = [phi_rad[idx], phi_dot[idx], cmu[0][idx].max(0.0), cmu[1][idx].max(0.0), 1.0];
         let predicted: [f64; PRESSURE_RANK] = std::array::from_fn(|row| {
