@@ -51,6 +51,11 @@ pub const MIN_DELTA_BIC: f64 = 10.0;
 /// the remainder before the gap counts as unattributed.
 pub const MAX_REMAINDER_SHARE: f64 = 0.1;
 
+/// Least structure (in noise variances, beyond the signature's floor) the probe must find in the
+/// remainder before it counts: a twentieth of the noise variance, below which the probe's own
+/// estimation scatter lies.
+pub const MIN_REMAINDER_TO_NOISE: f64 = 0.05;
+
 /// Canonical correlation above which two candidates cannot be told apart with this data.
 pub const CONFOUNDED_CORRELATION: f64 = 0.9;
 
@@ -274,8 +279,9 @@ pub fn diagnose(
 
     let balance_strength = named.first().map_or(0.0, &excess);
     let sensor_strength = sensor_named.first().map_or(0.0, |f| sensor_excess(f));
-    let remainder_structured =
-        named.first().is_some_and(|top| probe_explained >= min_ratio.max(MAX_REMAINDER_SHARE * excess(top)));
+    let remainder_structured = named
+        .first()
+        .is_some_and(|top| probe_explained >= MIN_REMAINDER_TO_NOISE.max(MAX_REMAINDER_SHARE * excess(top)));
 
     let mut effects = Vec::new();
     let mut where_ = Where::default();
