@@ -281,6 +281,42 @@ impl FaultInjector {
     }
 }
 
+/// A copy of `run` with the faults of `specs` applied to its recorded channels (the pressures,
+/// the roll angle, the blowing measurement and the balance), as the estimator's f32 inputs see
+/// them: a value a fault changed is stored as the faulty f32 widened to f64, every other value
+/// stays bit for bit, so replaying the copy steps the estimator on exactly the faulty inputs.
+#[must_use]
+pub fn apply_to_run(run: &crate::dataset::Run, specs: &[FaultSpec], seed: u64) -> crate::dataset::Run {
+    let mut faulty = run.clone();
+    let mut injector = FaultInjector::new(specs, run.meta.sample_hz, seed);
+    let channels = &mut faulty.channels;
+    for sample_idx in 0..channels.len() {
+        let narrow = |column: &[f64]| column.get(sample_idx).map_or(f32::NAN, |&value| value as f32);
+        let clean = Input {
+            phi_deg: narrow(&channels.phi_deg),
+            alpha_deg: 0.0,
+            cmu_port: narrow(&channels.cmu_port),
+            cmu_stbd: narrow(&channels.cmu_stbd),
+            cp: core::array::from_fn(|tap| narrow(&channels.cp[tap])),
+        };
+        let (mut input, mut balance_cl) = (clean, channels.cl[sample_idx]);
+        injector.apply(channels.t_s[sample_idx], &mut input, &mut balance_cl);
+        channels.cl[sample_idx] = balance_cl;
+        let store = |column: &mut Vec<f64>, before: f32, after: f32| {
+            if before.to_bits() != after.to_bits() {
+                column[sample_idx] = f64::from(after);
+            }
+        };
+        store(&mut channels.phi_deg, clean.phi_deg, input.phi_deg);
+        store(&mut channels.cmu_port, clean.cmu_port, input.cmu_port);
+        store(&mut channels.cmu_stbd, clean.cmu_stbd, input.cmu_stbd);
+        for tap in 0..N_TAPS {
+            store(&mut channels.cp[tap], clean.cp[tap], input.cp[tap]);
+        }
+    }
+    faulty
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
