@@ -22,3 +22,7 @@ mod sil;
 
 // The firmware in QEMU (STM32F405) against the host replay: same outputs, instruction counts.
 mod firmware;
+
+// Reliability: sensor faults in replays and the SIL loop, the fault study's goals, the loaders'
+// fuzzer, the soak, and folders that stay complete or absent when the writer is killed.
+mod reliability;
