@@ -91,6 +91,13 @@ impl PressureFilter {
         }
     }
 
+    /// True when the constants derived from the model (the roll-moment map of the modes, its
+    /// constant and the gate limits) are finite: finite tables can overflow in their products.
+    #[must_use]
+    pub fn derived_constants_are_finite(&self) -> bool {
+        self.cl_constant.is_finite() && self.mode_weights.iter().chain(&self.gate_limit).all(|value| value.is_finite())
+    }
+
     /// The reduced state.
     #[must_use]
     pub const fn modes(&self) -> &[f32; PRESSURE_RANK] {
@@ -144,7 +151,15 @@ impl PressureFilter {
             health.set(Health::STATE_RESET);
         }
         health.cp_isolated = self.isolated;
-        PressureEstimate { cl: dot(&self.mode_weights, &self.modes) + self.cl_constant, measured }
+        let cl = dot(&self.mode_weights, &self.modes) + self.cl_constant;
+        if !cl.is_finite() {
+            // Only with tables whose products overflow (validation rejects them): never pass
+            // on a non-finite estimate.
+            self.modes = [0.0; PRESSURE_RANK];
+            health.set(Health::STATE_RESET);
+            return PressureEstimate { cl: 0.0, measured: false };
+        }
+        PressureEstimate { cl, measured }
     }
 
     /// Counts each channel's bit-identical repeats and returns the channels that are stuck

@@ -635,7 +635,8 @@ fn fuzz(args: FuzzArgs) -> anyhow::Result<()> {
             outcome.n_findings
         );
         for finding in &outcome.findings {
-            println!("  finding at execution {}: {}\n    input: {:?}", finding.exec_idx, finding.what, finding.input);
+            let shown: String = finding.input.chars().take(300).collect();
+            println!("  finding at execution {}: {}\n    input (start): {shown:?}", finding.exec_idx, finding.what);
         }
         n_findings += outcome.n_findings;
     }
