@@ -167,18 +167,14 @@ impl PressureFilter {
     fn stuck_mask(&mut self, cp: &[f32; N_TAPS]) -> u16 {
         let mut stuck = 0u16;
         // Zipped iterators, not indices: the optimiser then needs no bounds check (and the
-        // step keeps its link-time proof of no panic path).
+        // step keeps its link-time proof of no panic path). A missing (NaN) reading needs no
+        // test here: it never passes the gate anyway.
         let channels = cp.iter().zip(self.last_bits.iter_mut()).zip(self.repeats.iter_mut());
         for (tap, ((value, last_bits), repeats)) in channels.enumerate() {
-            if !value.is_finite() {
-                continue;
-            }
             let bits = value.to_bits();
             *repeats = if bits == *last_bits { repeats.saturating_add(1) } else { 1 };
             *last_bits = bits;
-            if *repeats >= STUCK_AFTER_STEPS {
-                stuck |= 1 << tap;
-            }
+            stuck |= u16::from(*repeats >= STUCK_AFTER_STEPS) << tap;
         }
         stuck
     }

@@ -59,7 +59,8 @@ struct QemuReplayArgs {
     /// Replay only the first N samples.
     #[arg(long)]
     samples: Option<usize>,
-    /// Folder for the firmware's input, output and defmt log.
+    /// Folder for the firmware's input, output, defmt log and summary (written completely or
+    /// not at all).
     #[arg(long)]
     out: PathBuf,
     /// QEMU time limit, s.
@@ -363,9 +364,14 @@ fn qemu_replay(args: QemuReplayArgs) -> anyhow::Result<()> {
         .find(|run| run.meta.file == args.run)
         .with_context(|| format!("no run {} in {}", args.run.display(), args.data.display()))?;
     let timeout = std::time::Duration::from_secs(args.timeout_s);
-    let replay = host_tools::qemu::qemu_replay(run, args.samples, &args.out, timeout)?;
-    let summary = host_tools::qemu::summary(&replay);
-    std::fs::write(args.out.join("summary.txt"), &summary)?;
+    // QEMU works in a temporary folder that becomes `--out` only once the summary is written:
+    // complete or absent, like every other output folder.
+    let mut summary = String::new();
+    firmware_sim::atomic::write_folder::<anyhow::Error>(&args.out, "summary.txt", |tmp| {
+        let replay = host_tools::qemu::qemu_replay(run, args.samples, tmp, timeout)?;
+        summary = host_tools::qemu::summary(&replay);
+        std::fs::write(tmp.join("summary.txt"), &summary).context("writing summary.txt")
+    })?;
     print!("{summary}");
     Ok(())
 }
