@@ -167,12 +167,15 @@ impl PressureFilter {
     fn stuck_mask(&mut self, cp: &[f32; N_TAPS]) -> u16 {
         let mut stuck = 0u16;
         // Zipped iterators, not indices: the optimiser then needs no bounds check (and the
-        // step keeps its link-time proof of no panic path). A missing (NaN) reading needs no
-        // test here: it never passes the gate anyway.
+        // step keeps its link-time proof of no panic path). A missing reading (NaN, infinite)
+        // neither counts nor breaks the streak, so dropouts cannot hide a frozen channel; it is
+        // handled by selects rather than a branch, which keeps the loop cheap on the M4F.
         let channels = cp.iter().zip(self.last_bits.iter_mut()).zip(self.repeats.iter_mut());
         for (tap, ((value, last_bits), repeats)) in channels.enumerate() {
-            let bits = value.to_bits();
-            *repeats = if bits == *last_bits { repeats.saturating_add(1) } else { 1 };
+            let missing = !value.is_finite();
+            let bits = if missing { *last_bits } else { value.to_bits() };
+            let counted = if bits == *last_bits { repeats.saturating_add(1) } else { 1 };
+            *repeats = if missing { *repeats } else { counted };
             *last_bits = bits;
             stuck |= u16::from(*repeats >= STUCK_AFTER_STEPS) << tap;
         }
@@ -473,5 +476,23 @@ mod tests {
         }
         assert!(!estimate.measured);
         assert_eq!(health.cp_rejected, (1 << N_TAPS) - 1);
+    }
+
+    #[test]
+    fn dropouts_do_not_hide_a_stuck_channel() {
+        let model = crate::prior::full_size_fixture().pressure;
+        let mut filter = PressureFilter::new(&model);
+        let mut flagged_at = None;
+        for step in 0..60 {
+            let mut cp = live(&model, step);
+            cp[5] = if step % 3 == 2 { f32::NAN } else { model.cp_mean[5] + 0.003 };
+            let mut health = Health::default();
+            let _ = filter.step(&model, &[0.0; N_PRESSURE_INPUTS], &cp, &mut health);
+            if health.channel_faulty(5) && flagged_at.is_none() {
+                flagged_at = Some(step);
+            }
+        }
+        // 20 finite readings among the first 30 samples (every third one is missing).
+        assert_eq!(flagged_at, Some(28));
     }
 }
