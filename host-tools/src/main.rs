@@ -568,6 +568,10 @@ struct FuzzArgs {
     /// An input slower than this is a finding, ms.
     #[arg(long = "time-limit-ms", default_value_t = 1000)]
     time_limit_ms: u64,
+    /// Only write the valid seed inputs of every target into DIR/TARGET/ (the corpus for the
+    /// cargo-fuzz targets in fuzz/), then stop.
+    #[arg(long = "write-seeds", value_name = "DIR")]
+    write_seeds: Option<PathBuf>,
 }
 
 #[derive(Debug, clap::Args)]
@@ -616,6 +620,9 @@ fn faults(args: FaultsArgs) -> anyhow::Result<()> {
 fn fuzz(args: FuzzArgs) -> anyhow::Result<()> {
     use host_tools::reliability::fuzz::{FuzzConfig, Target, fuzz};
     let targets = if args.targets.is_empty() { Target::ALL.to_vec() } else { args.targets };
+    if let Some(dir) = &args.write_seeds {
+        return write_seeds(dir, &targets);
+    }
     let mut n_findings = 0;
     for target in targets {
         let config = FuzzConfig {
@@ -647,6 +654,28 @@ fn fuzz(args: FuzzArgs) -> anyhow::Result<()> {
         n_findings += outcome.n_findings;
     }
     anyhow::ensure!(n_findings == 0, "{n_findings} findings");
+    Ok(())
+}
+
+/// Writes the seed inputs of `targets` into `dir/TARGET/seed-N` (complete or absent; libFuzzer
+/// adds its own inputs to these folders later, and a new `--write-seeds` replaces them).
+fn write_seeds(dir: &std::path::Path, targets: &[host_tools::reliability::fuzz::Target]) -> anyhow::Result<()> {
+    const MARKER: &str = "SEEDS.md";
+    firmware_sim::atomic::write_folder::<anyhow::Error>(dir, MARKER, |tmp| {
+        std::fs::write(
+            tmp.join(MARKER),
+            "Seed inputs of the loaders' fuzz targets, by `host-tools fuzz --write-seeds`.\n",
+        )?;
+        for &target in targets {
+            let target_dir = tmp.join(target.name());
+            std::fs::create_dir(&target_dir)?;
+            for (idx, seed) in host_tools::reliability::fuzz::seeds(target).iter().enumerate() {
+                std::fs::write(target_dir.join(format!("seed-{idx}")), seed)?;
+            }
+        }
+        Ok(())
+    })?;
+    eprintln!("wrote the seeds of {} targets into {}", targets.len(), dir.display());
     Ok(())
 }
 

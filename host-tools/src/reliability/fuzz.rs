@@ -246,16 +246,40 @@ impl FuzzOutcome {
     }
 }
 
-/// Calls the loader on `input` under `catch_unwind` and checks its contract.
-fn run_once(target: Target, input: &[u8]) -> (Verdict, Duration) {
-    let started = Instant::now();
-    let verdict = catch_unwind(AssertUnwindSafe(|| match target {
+/// Calls the loader of `target` on `input` and checks its contract: `Ok(true)` when it
+/// accepted the input, `Ok(false)` when it rejected it with a typed error that names the file,
+/// `Err` with what broke otherwise; a panic propagates. The entry point of the cargo-fuzz
+/// targets (`fuzz/`), which run it on nightly with libFuzzer.
+///
+/// # Errors
+/// A description of the broken contract.
+pub fn check_input(target: Target, input: &[u8]) -> Result<bool, String> {
+    match verdict(target, input) {
+        Verdict::Accepted => Ok(true),
+        Verdict::Rejected(_) => Ok(false),
+        Verdict::Broken(what) => Err(what),
+    }
+}
+
+/// The valid inputs every execution starts from (the seed corpus of the cargo-fuzz targets).
+#[must_use]
+pub fn seeds(target: Target) -> Vec<Vec<u8>> {
+    corpus(target)
+}
+
+fn verdict(target: Target, input: &[u8]) -> Verdict {
+    match target {
         Target::DatasetCsv => check_run(input),
         Target::Manifest => check_manifest(input),
         Target::Blob => check_blob(input),
         Target::Scenario => check_scenario(input),
-    }))
-    .unwrap_or_else(|payload| {
+    }
+}
+
+/// Calls the loader on `input` under `catch_unwind` and checks its contract.
+fn run_once(target: Target, input: &[u8]) -> (Verdict, Duration) {
+    let started = Instant::now();
+    let verdict = catch_unwind(AssertUnwindSafe(|| verdict(target, input))).unwrap_or_else(|payload| {
         let message = payload
             .downcast_ref::<&str>()
             .map(|text| (*text).to_owned())
