@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# The test command: formatting, lints, the whole test suite, and the no_std build of the core
-# for the flight controller's Cortex-M4F. Safe to run again: every install step is idempotent.
+# The test command: formatting, lints, the whole test suite, the no_std build of the core for the
+# flight controller's Cortex-M4F and the link-time proof that its step cannot panic. Safe to run
+# again: every install step is idempotent.
 #
 #   ./ci.sh          all jobs
 #   ./ci.sh JOB ...  some of: setup fmt clippy test doc nostd
@@ -30,6 +31,9 @@ nostd() {
     cargo build -p estimator-core --target thumbv7em-none-eabihf --release
     cargo build -p estimator-core --target thumbv7em-none-eabihf --release --features defmt
     cargo build -p firmware-sim --bin firmware --no-default-features --features target --target thumbv7em-none-eabihf --release
+    # Link-time proof that Estimator::step has no panic path (firmware-sim/src/bin/panic_check.rs):
+    # the link fails if one survives whole-program optimisation.
+    cargo build -p firmware-sim --bin panic_check --no-default-features --features target --target thumbv7em-none-eabihf --profile firmware
 }
 
 jobs=("$@")

@@ -322,8 +322,9 @@ pub fn decode(bytes: &[u8]) -> Result<CoefficientSet, BlobError> {
 /// The set must have this build's `schema_version`; every f32 in it (used or not, including the
 /// sparse coefficients and thresholds) must be finite; `dt_s > 0`; `1 <= n_alpha <= N_ALPHA`
 /// with the used breakpoints strictly ascending; the used eGK entries need `tau1_s > 0` and
-/// `tau2_s >= 0`; `pressure.rank <= PRESSURE_RANK` and `pressure.gate_sigma > 0`; every sparse
-/// model has `n_terms <= MAX_TERMS`; `controller.cmu_max > 0`.
+/// `tau2_s >= 0`; `pressure.rank <= PRESSURE_RANK`, `pressure.gate_sigma > 0` and the
+/// constants the pressure filter derives from its tables are finite; every sparse model has
+/// `n_terms <= MAX_TERMS`; `controller.cmu_max > 0`.
 ///
 /// # Errors
 ///
@@ -348,6 +349,12 @@ pub fn validate(set: &CoefficientSet) -> Result<(), BlobError> {
     ensure(usize::from(set.pressure.rank) <= PRESSURE_RANK, "pressure.rank must be <= PRESSURE_RANK")?;
     ensure(modes_beyond_rank_are_zero(&set.pressure), "pressure modes beyond rank must be zero")?;
     ensure(set.pressure.gate_sigma > 0.0, "pressure.gate_sigma must be > 0")?;
+    // Finite tables can still overflow in the constants the filter derives from them (found by
+    // `host-tools fuzz --target blob`: a weight of 1e30 times a mode shape of 1e23).
+    ensure(
+        crate::pressure::PressureFilter::new(&set.pressure).derived_constants_are_finite(),
+        "pressure tables overflow: the roll-moment map, its constant or a gate is not finite",
+    )?;
 
     let [port, starboard] = &set.plant;
     ensure(usize::from(port.n_terms) <= MAX_TERMS, "plant[0].n_terms must be <= MAX_TERMS")?;
@@ -901,6 +908,24 @@ mod tests {
         set.pressure.gain[3][7] = f32::NAN;
         let blob = encode_vec(&set);
         assert_eq!(decode(&blob), Err(BlobError::Invalid("pressure.gain is not finite")));
+    }
+
+    /// Issue 8 (reliability; the fuzzer of `host-tools fuzz --target blob` found it): finite
+    /// pressure tables whose product overflows passed validation, and the step then returned a
+    /// NaN `cl_pressure`.
+    #[test]
+    fn issue_8_pressure_tables_that_overflow_are_rejected_and_never_reach_the_output() {
+        let mut set = crate::coeffs::DEFAULT;
+        set.pressure.cl_weights[1] = 1e30;
+        set.pressure.c[1][0] = 1e23;
+        assert!(
+            matches!(validate(&set), Err(BlobError::Invalid(what)) if what.starts_with("pressure tables overflow"))
+        );
+        let mut estimator = crate::Estimator::new(&set);
+        let input = crate::Input { phi_deg: 5.0, alpha_deg: 10.0, cmu_port: 0.0, cmu_stbd: 0.0, cp: [-0.4; N_TAPS] };
+        for _ in 0..10 {
+            assert!(estimator.step(&input).estimates().iter().all(|value| value.is_finite()));
+        }
     }
 
     #[test]

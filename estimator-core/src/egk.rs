@@ -44,9 +44,16 @@ pub fn params_at(set: &CoefficientSet, alpha_deg: f32) -> EgkParams {
     if upper == n_alpha {
         return set.egk[n_alpha - 1];
     }
-    let (low, high) = (&set.egk[upper - 1], &set.egk[upper]);
-    let span = breakpoints[upper] - breakpoints[upper - 1];
-    let weight = if span > 0.0 { (alpha_deg - breakpoints[upper - 1]) / span } else { 0.0 };
+    // `0 < upper < n_alpha <= N_ALPHA`, but the optimiser cannot see it through `position`:
+    // `get` keeps the step free of a bounds-check panic (the link-time check of
+    // firmware-sim's `panic_check` binary), and the fallback is never taken.
+    let (Some(low), Some(high), Some(&low_deg), Some(&high_deg)) =
+        (set.egk.get(upper - 1), set.egk.get(upper), breakpoints.get(upper - 1), breakpoints.get(upper))
+    else {
+        return set.egk[n_alpha - 1];
+    };
+    let span = high_deg - low_deg;
+    let weight = if span > 0.0 { (alpha_deg - low_deg) / span } else { 0.0 };
     interpolate(low, high, weight)
 }
 

@@ -23,6 +23,24 @@ const PHI_LIMIT_DEG: f32 = 90.0;
 const ALPHA_LIMIT_DEG: f32 = 60.0;
 /// Largest Cmu accepted (far beyond any trailing-edge jet).
 const CMU_LIMIT: f32 = 0.1;
+/// Largest |roll rate| passed on, rad/s (about 4 times the largest of the paper's campaign,
+/// 8 rad/s): an encoder that jumps (a spike, a stuck value released) makes the differentiated
+/// angle spike far beyond what the rig can do, and the eGK's damping term would turn that into
+/// a roll moment of several units.
+const PHI_DOT_LIMIT_RAD_S: f32 = 30.0;
+/// Largest |roll acceleration| passed on, rad/s^2 (about 8 times the largest of the paper's
+/// campaign, 380 rad/s^2, most of which is differentiated encoder noise), for the same reason.
+const PHI_DDOT_LIMIT_RAD_S2: f32 = 3000.0;
+/// Steps over which a missing roll angle is extrapolated with the filtered roll rate before it
+/// is held (50 ms at 1 kHz): a dropped encoder sample then does not show up as a step of the
+/// angle (a spike of the rate) when the next one arrives, and a dead encoder does not make the
+/// angle run away.
+const PHI_COAST_STEPS: u16 = 50;
+/// Largest |coupling correction| passed on; beyond it the correction is limited and flagged.
+/// The correction is a fraction of the roll moment (at most about 0.005 on the paper's
+/// campaign, whose |C_l| stays below 0.06); far outside the fitted inputs (clamped garbage, a
+/// Cmu ten times the largest jet) the cubic terms would otherwise reach C_l of several hundred.
+const COUPLING_LIMIT: f32 = 0.05;
 
 /// The measurements of one step. Any value may be NaN (not measured this step).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -123,6 +141,8 @@ pub struct Estimator<'a> {
     last_cmu_total: f32,
     /// `1 / dt`, Hz.
     rate_hz: f32,
+    /// Consecutive steps without a roll angle (saturating).
+    phi_missing_steps: u16,
 }
 
 impl<'a> Estimator<'a> {
@@ -140,6 +160,7 @@ impl<'a> Estimator<'a> {
             plants: [Plant::new(); 2],
             last_cmu_total: 0.0,
             rate_hz: 1.0 / set.dt_s,
+            phi_missing_steps: 0,
         }
     }
 
@@ -168,7 +189,7 @@ impl<'a> Estimator<'a> {
         self.validate(input, &mut health);
         let phi_rad = self.held.phi_deg.to_radians();
         let alpha_rad = self.held.alpha_deg.to_radians();
-        let rates = self.rates.step(&set.rate_filter, self.rate_hz, phi_rad);
+        let rates = limit_rates(self.rates.step(&set.rate_filter, self.rate_hz, phi_rad), &mut health);
         let (cl_egk, egk_reset) = self.egk.step(set, &self.egk_input(phi_rad, &rates));
         let pressure_inputs = self.pressure_inputs(phi_rad, &rates);
         let pressure = self.pressure.step(&set.pressure, &pressure_inputs, &input.cp, &mut health);
@@ -192,10 +213,17 @@ impl<'a> Estimator<'a> {
             phi_rad,
         };
         self.last_cmu_total = cmu_total;
-        let coupling = correction(&set.coupling, &coupling_input).unwrap_or_else(|| {
-            health.set(Health::STATE_RESET);
-            0.0
-        });
+        let coupling = match correction(&set.coupling, &coupling_input) {
+            Some(value) if value.abs() <= COUPLING_LIMIT => value,
+            Some(value) => {
+                health.set(Health::ESTIMATE_LIMITED);
+                value.clamp(-COUPLING_LIMIT, COUPLING_LIMIT)
+            }
+            None => {
+                health.set(Health::STATE_RESET);
+                0.0
+            }
+        };
         let cl_linear = cl_roll + cl_afc;
         Output {
             cl_egk,
@@ -212,8 +240,21 @@ impl<'a> Estimator<'a> {
         }
     }
 
-    /// Holds the last valid value of a missing input and clamps out-of-range ones.
+    /// Holds the last valid value of a missing input (a missing roll angle is first extrapolated
+    /// for [`PHI_COAST_STEPS`] steps) and clamps out-of-range ones.
     fn validate(&mut self, input: &Input, health: &mut Health) {
+        if input.phi_deg.is_finite() {
+            self.phi_missing_steps = 0;
+        } else {
+            self.phi_missing_steps = self.phi_missing_steps.saturating_add(1);
+            if self.phi_missing_steps <= PHI_COAST_STEPS {
+                let step_deg = self.rates.phi_dot_rad_s().to_degrees() * self.set.dt_s;
+                let coasted = self.held.phi_deg + step_deg;
+                if coasted.is_finite() {
+                    self.held.phi_deg = coasted.clamp(-PHI_LIMIT_DEG, PHI_LIMIT_DEG);
+                }
+            }
+        }
         let mut take = |value: f32, limit: f32, low: f32, held: &mut f32, missing_flag: u16| {
             if !value.is_finite() {
                 health.set(missing_flag);
@@ -242,6 +283,20 @@ impl<'a> Estimator<'a> {
     /// `[phi_rad, phi_dot_rad_s, cmu_port, cmu_stbd, 1]`.
     fn pressure_inputs(&self, phi_rad: f32, rates: &RollRates) -> [f32; N_PRESSURE_INPUTS] {
         [phi_rad, rates.phi_dot_rad_s, self.held.cmu[0], self.held.cmu[1], 1.0]
+    }
+}
+
+/// Limits the roll rate and acceleration passed on to [`PHI_DOT_LIMIT_RAD_S`] and
+/// [`PHI_DDOT_LIMIT_RAD_S2`] (the filters' own states are not touched, so they decay from the
+/// spike as they would).
+fn limit_rates(rates: RollRates, health: &mut Health) -> RollRates {
+    if rates.phi_dot_rad_s.abs() <= PHI_DOT_LIMIT_RAD_S && rates.phi_ddot_rad_s2.abs() <= PHI_DDOT_LIMIT_RAD_S2 {
+        return rates;
+    }
+    health.set(Health::INPUT_CLAMPED);
+    RollRates {
+        phi_dot_rad_s: rates.phi_dot_rad_s.clamp(-PHI_DOT_LIMIT_RAD_S, PHI_DOT_LIMIT_RAD_S),
+        phi_ddot_rad_s2: rates.phi_ddot_rad_s2.clamp(-PHI_DDOT_LIMIT_RAD_S2, PHI_DDOT_LIMIT_RAD_S2),
     }
 }
 

@@ -19,7 +19,8 @@ pub struct Health {
 }
 
 impl Health {
-    /// The roll angle was missing or non-finite; the last valid one was held.
+    /// The roll angle was missing or non-finite; the last valid one was extrapolated with the
+    /// filtered roll rate (for at most 50 ms), then held.
     pub const PHI_HELD: u16 = 1 << 0;
     /// The angle of attack was missing or non-finite; the last valid one was held.
     pub const ALPHA_HELD: u16 = 1 << 1;
@@ -35,6 +36,8 @@ impl Health {
     pub const CMU_SATURATED: u16 = 1 << 6;
     /// The measured roll moment for the feedback was missing; the integrator held.
     pub const FEEDBACK_HELD: u16 = 1 << 7;
+    /// An estimate left its plausible range (far outside the fitted inputs) and was limited.
+    pub const ESTIMATE_LIMITED: u16 = 1 << 8;
 
     /// True when no flag and no channel bit is set.
     #[must_use]

@@ -10,12 +10,24 @@
 //! `gate_sigma` times its steady-state standard deviation is rejected and flagged; after
 //! `isolate_after` consecutive rejections it is isolated until it passes the gate as many times
 //! in a row.
+//!
+//! A stuck channel (a frozen ADC or a blocked tube) can stay inside the gate for a long time,
+//! because its innovation only grows as the true pressure moves away. But a live pressure
+//! reading carries sensor noise (sigma about 0.01 Cp against a 12-bit quantum of about 0.001):
+//! the same bit pattern [`STUCK_AFTER_STEPS`] times in a row happens only when the reading is
+//! frozen. Such a channel fails the gate (rejected, then isolated like any other) until its
+//! value changes.
 
 use crate::coeffs::{N_PRESSURE_INPUTS, N_TAPS, PRESSURE_RANK, PressureModel};
 use crate::health::Health;
 
 /// Largest magnitude a reduced state may reach before it is treated as diverged and reset.
 const STATE_LIMIT: f32 = 1.0e6;
+
+/// Consecutive bit-identical readings after which a channel counts as stuck (20 ms at 1 kHz,
+/// within the 50 ms in which a faulty channel must be flagged). With noise of 10 quanta, 20
+/// equal readings in a row of a live channel have a probability far below 1e-20.
+pub const STUCK_AFTER_STEPS: u8 = 20;
 
 /// The pressure filter's state.
 ///
@@ -34,6 +46,10 @@ pub struct PressureFilter {
     /// Consecutive rejections (or, for an isolated channel, consecutive passes) per channel.
     streak: [u16; N_TAPS],
     isolated: u16,
+    /// Bit pattern of each channel's last finite reading.
+    last_bits: [u32; N_TAPS],
+    /// Consecutive readings of each channel equal to `last_bits` (saturating).
+    repeats: [u8; N_TAPS],
 }
 
 /// Result of one pressure step.
@@ -63,7 +79,23 @@ impl PressureFilter {
             gate_limit[tap] = model.gate_sigma * model.innovation_std[tap];
             tap += 1;
         }
-        Self { modes: [0.0; PRESSURE_RANK], mode_weights, cl_constant, gate_limit, streak: [0; N_TAPS], isolated: 0 }
+        Self {
+            modes: [0.0; PRESSURE_RANK],
+            mode_weights,
+            cl_constant,
+            gate_limit,
+            streak: [0; N_TAPS],
+            isolated: 0,
+            last_bits: [0; N_TAPS],
+            repeats: [0; N_TAPS],
+        }
+    }
+
+    /// True when the constants derived from the model (the roll-moment map of the modes, its
+    /// constant and the gate limits) are finite: finite tables can overflow in their products.
+    #[must_use]
+    pub fn derived_constants_are_finite(&self) -> bool {
+        self.cl_constant.is_finite() && self.mode_weights.iter().chain(&self.gate_limit).all(|value| value.is_finite())
     }
 
     /// The reduced state.
@@ -101,6 +133,8 @@ impl PressureFilter {
         if pass_mask == 0 {
             pass_mask = finite_mask;
         }
+        // A frozen reading never passes, even when all are frozen (the whole front end hung).
+        pass_mask &= !self.stuck_mask(cp);
         let used_mask = self.track_faults(model, finite_mask, pass_mask, health);
         for (tap, value) in innovation.iter_mut().enumerate() {
             if used_mask & (1 << tap) == 0 {
@@ -117,7 +151,35 @@ impl PressureFilter {
             health.set(Health::STATE_RESET);
         }
         health.cp_isolated = self.isolated;
-        PressureEstimate { cl: dot(&self.mode_weights, &self.modes) + self.cl_constant, measured }
+        let cl = dot(&self.mode_weights, &self.modes) + self.cl_constant;
+        if !cl.is_finite() {
+            // Only with tables whose products overflow (validation rejects them): never pass
+            // on a non-finite estimate.
+            self.modes = [0.0; PRESSURE_RANK];
+            health.set(Health::STATE_RESET);
+            return PressureEstimate { cl: 0.0, measured: false };
+        }
+        PressureEstimate { cl, measured }
+    }
+
+    /// Counts each channel's bit-identical repeats and returns the channels that are stuck
+    /// ([`STUCK_AFTER_STEPS`] equal readings in a row).
+    fn stuck_mask(&mut self, cp: &[f32; N_TAPS]) -> u16 {
+        let mut stuck = 0u16;
+        // Zipped iterators, not indices: the optimiser then needs no bounds check (and the
+        // step keeps its link-time proof of no panic path). A missing reading (NaN, infinite)
+        // neither counts nor breaks the streak, so dropouts cannot hide a frozen channel; it is
+        // handled by selects rather than a branch, which keeps the loop cheap on the M4F.
+        let channels = cp.iter().zip(self.last_bits.iter_mut()).zip(self.repeats.iter_mut());
+        for (tap, ((value, last_bits), repeats)) in channels.enumerate() {
+            let missing = !value.is_finite();
+            let bits = if missing { *last_bits } else { value.to_bits() };
+            let counted = if bits == *last_bits { repeats.saturating_add(1) } else { 1 };
+            *repeats = if missing { *repeats } else { counted };
+            *last_bits = bits;
+            stuck |= u16::from(*repeats >= STUCK_AFTER_STEPS) << tap;
+        }
+        stuck
     }
 
     /// Updates each measured channel's streak and isolation from whether it passed the gate,
@@ -361,14 +423,21 @@ mod tests {
         assert_eq!(with_gap.modes(), reference.modes(), "a missing channel is a zero innovation");
     }
 
+    /// The mean pressures with a tiny alternating offset: live channels never repeat a reading
+    /// bit for bit (see [`STUCK_AFTER_STEPS`]), and the offset is far inside the gate.
+    fn live(model: &PressureModel, step: usize) -> [f32; N_TAPS] {
+        let wiggle = if step.is_multiple_of(2) { 1e-4 } else { -1e-4 };
+        core::array::from_fn(|tap| model.cp_mean[tap] + wiggle)
+    }
+
     #[test]
     fn biased_channel_is_rejected_then_isolated_while_others_keep_correcting() {
         let model = crate::prior::full_size_fixture().pressure;
         let mut filter = PressureFilter::new(&model);
-        let mut cp = model.cp_mean;
-        cp[6] += 1.0;
         let mut last = Health::default();
         for step in 0..usize::from(model.isolate_after) + 5 {
+            let mut cp = live(&model, step);
+            cp[6] += 1.0;
             last = Health::default();
             let estimate = filter.step(&model, &[0.0; N_PRESSURE_INPUTS], &cp, &mut last);
             assert!(estimate.measured && estimate.cl.is_finite());
@@ -376,11 +445,54 @@ mod tests {
         }
         assert_eq!(last.cp_isolated, 1 << 6);
         // Back to normal: re-admitted after as many passes in a row.
-        cp[6] -= 1.0;
-        for _ in 0..usize::from(model.isolate_after) + 1 {
+        for step in 0..usize::from(model.isolate_after) + 1 {
             last = Health::default();
-            let _ = filter.step(&model, &[0.0; N_PRESSURE_INPUTS], &cp, &mut last);
+            let _ = filter.step(&model, &[0.0; N_PRESSURE_INPUTS], &live(&model, step), &mut last);
         }
         assert_eq!(last.cp_isolated, 0);
+    }
+
+    #[test]
+    fn stuck_channel_is_rejected_after_its_repeats_and_a_frozen_front_end_is_unused() {
+        let model = crate::prior::full_size_fixture().pressure;
+        let mut filter = PressureFilter::new(&model);
+        let frozen_cp = model.cp_mean[2] + 0.003;
+        for step in 0..usize::from(STUCK_AFTER_STEPS) + 3 {
+            let mut cp = live(&model, step);
+            cp[2] = frozen_cp;
+            let mut health = Health::default();
+            let estimate = filter.step(&model, &[0.0; N_PRESSURE_INPUTS], &cp, &mut health);
+            assert!(estimate.measured);
+            let stuck = step + 1 >= usize::from(STUCK_AFTER_STEPS);
+            assert_eq!(health.channel_faulty(2), stuck, "step {step}");
+            assert_eq!(health.cp_rejected & !(1 << 2), 0, "step {step}: only the stuck channel");
+        }
+        // Every channel frozen: nothing corrects the prediction.
+        let mut health = Health::default();
+        let mut estimate = filter.step(&model, &[0.0; N_PRESSURE_INPUTS], &model.cp_mean, &mut health);
+        for _ in 0..STUCK_AFTER_STEPS {
+            health = Health::default();
+            estimate = filter.step(&model, &[0.0; N_PRESSURE_INPUTS], &model.cp_mean, &mut health);
+        }
+        assert!(!estimate.measured);
+        assert_eq!(health.cp_rejected, (1 << N_TAPS) - 1);
+    }
+
+    #[test]
+    fn dropouts_do_not_hide_a_stuck_channel() {
+        let model = crate::prior::full_size_fixture().pressure;
+        let mut filter = PressureFilter::new(&model);
+        let mut flagged_at = None;
+        for step in 0..60 {
+            let mut cp = live(&model, step);
+            cp[5] = if step % 3 == 2 { f32::NAN } else { model.cp_mean[5] + 0.003 };
+            let mut health = Health::default();
+            let _ = filter.step(&model, &[0.0; N_PRESSURE_INPUTS], &cp, &mut health);
+            if health.channel_faulty(5) && flagged_at.is_none() {
+                flagged_at = Some(step);
+            }
+        }
+        // 20 finite readings among the first 30 samples (every third one is missing).
+        assert_eq!(flagged_at, Some(28));
     }
 }

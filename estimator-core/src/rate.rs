@@ -30,6 +30,12 @@ impl RateEstimator {
         Self { last_phi_rad: 0.0, phi_dot_rad_s: 0.0, last_phi_dot_rad_s: 0.0, phi_ddot_rad_s2: 0.0, primed: false }
     }
 
+    /// The filtered roll rate of the last step, rad/s.
+    #[must_use]
+    pub const fn phi_dot_rad_s(&self) -> f32 {
+        self.phi_dot_rad_s
+    }
+
     /// Advances with the roll angle of this step (finite, already validated by the caller);
     /// `rate_hz = 1 / dt`.
     pub fn step(&mut self, filter: &RateFilter, rate_hz: f32, phi_rad: f32) -> RollRates {

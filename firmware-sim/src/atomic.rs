@@ -1,6 +1,14 @@
 //! Writing a folder completely or not at all: every output folder of the tools (datasets, model
 //! folders, reports) is filled under a temporary sibling name and renamed into place only once
 //! it is complete, so an interrupted or failed write never leaves a half-written folder.
+//!
+//! A process killed in the middle of a write (SIGKILL, power loss) cannot clean up: it may leave
+//! its temporary folder `.NAME.tmp-PID-N`, and, if it died between moving the previous folder
+//! aside and renaming the new one in, the previous folder as `.NAME.old-PID-N` with no `NAME`.
+//! The next write of `NAME` repairs this first: a backup whose writer is gone is renamed back to
+//! `NAME` when `NAME` is absent (the user's previous folder is never lost), and leftovers of
+//! writers that are gone are removed. Whether a writer is gone is known from `/proc` (Linux);
+//! elsewhere leftovers are only reported by their hidden names.
 
 use std::fs;
 use std::io::ErrorKind;
@@ -51,8 +59,9 @@ pub fn write_folder<E: From<FolderError>>(
     marker: &str,
     fill: impl FnOnce(&Path) -> Result<(), E>,
 ) -> Result<(), E> {
-    check_destination(dir, marker)?;
     let (parent, name) = split(dir)?;
+    recover_leftovers(parent, &name, dir);
+    check_destination(dir, marker)?;
     if !parent.as_os_str().is_empty() {
         fs::create_dir_all(parent).map_err(FolderError::io(parent, "cannot create the folder"))?;
     }
@@ -65,6 +74,42 @@ pub fn write_folder<E: From<FolderError>>(
         return Err(err);
     }
     move_into_place(&tmp, dir, &parent.join(format!(".{name}.old-{id}"))).map_err(E::from)
+}
+
+/// Restores the backup of an interrupted replacement and removes the leftovers of writers of
+/// `name` in `parent` that are gone. Best effort: a leftover that cannot be removed only costs
+/// disk space and never blocks the write.
+fn recover_leftovers(parent: &Path, name: &str, dir: &Path) {
+    let listing = if parent.as_os_str().is_empty() { Path::new(".") } else { parent };
+    let Ok(entries) = fs::read_dir(listing) else {
+        return;
+    };
+    let mut leftovers: Vec<(PathBuf, bool)> = entries
+        .filter_map(Result::ok)
+        .filter_map(|entry| {
+            let file_name = entry.file_name();
+            let rest = file_name.to_str()?.strip_prefix('.')?.strip_prefix(name)?;
+            let (is_backup, id) = match rest.strip_prefix(".old-") {
+                Some(id) => (true, id),
+                None => (false, rest.strip_prefix(".tmp-")?),
+            };
+            let pid: u32 = id.split('-').next()?.parse().ok()?;
+            writer_is_gone(pid).then(|| (parent.join(&file_name), is_backup))
+        })
+        .collect();
+    // Backups first, so that a restored folder is not then taken for a leftover.
+    leftovers.sort_by_key(|(_, is_backup)| !is_backup);
+    for (path, is_backup) in leftovers {
+        if is_backup && !dir.exists() && fs::rename(&path, dir).is_ok() {
+            continue;
+        }
+        let _ = fs::remove_dir_all(&path);
+    }
+}
+
+/// True when process `pid` has certainly ended (Linux `/proc`); false when unknown.
+fn writer_is_gone(pid: u32) -> bool {
+    pid != std::process::id() && Path::new("/proc/self").exists() && !Path::new("/proc").join(pid.to_string()).exists()
 }
 
 fn check_destination(dir: &Path, marker: &str) -> Result<(), FolderError> {
@@ -143,6 +188,27 @@ mod tests {
         });
         assert!(failed.is_err());
         assert_eq!(fs::read_to_string(dir.join("mark")).unwrap(), "1");
+        let leftovers: Vec<_> = fs::read_dir(root.path()).unwrap().map(|entry| entry.unwrap().file_name()).collect();
+        assert_eq!(leftovers, vec![std::ffi::OsString::from("out")]);
+    }
+
+    #[test]
+    fn leftovers_of_a_killed_writer_are_repaired_by_the_next_write() {
+        let root = tempfile::tempdir().unwrap();
+        let dir = root.path().join("out");
+        // A writer (pid 0x7fff_fff0, certainly not running) died between the two renames of a
+        // replacement: its new folder half-filled, the previous folder only as the backup.
+        let dead = 0x7fff_fff0u32;
+        fs::create_dir(root.path().join(format!(".out.tmp-{dead}-0"))).unwrap();
+        let backup = root.path().join(format!(".out.old-{dead}-0"));
+        fs::create_dir(&backup).unwrap();
+        fs::write(backup.join("mark"), "previous").unwrap();
+        // The next write restores the previous folder, then replaces it as usual.
+        let failed = write_folder::<FolderError>(&dir, "mark", |tmp| {
+            Err(FolderError::Refused { path: tmp.to_path_buf(), found: "a test failure" })
+        });
+        assert!(failed.is_err());
+        assert_eq!(fs::read_to_string(dir.join("mark")).unwrap(), "previous", "the user's folder is back");
         let leftovers: Vec<_> = fs::read_dir(root.path()).unwrap().map(|entry| entry.unwrap().file_name()).collect();
         assert_eq!(leftovers, vec![std::ffi::OsString::from("out")]);
     }

@@ -208,9 +208,19 @@ impl Default for Excitation {
 impl Scenario {
     /// Reads a scenario file; keys it does not set keep the paper's values.
     pub fn from_file(path: &Path) -> Result<Self, ScenarioError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|source| ScenarioError::Io { path: path.display().to_string(), source })?;
-        Self::from_toml(&text).map_err(|message| ScenarioError::Toml { path: path.display().to_string(), message })
+        let bytes =
+            std::fs::read(path).map_err(|source| ScenarioError::Io { path: path.display().to_string(), source })?;
+        Self::from_bytes(&path.display().to_string(), &bytes)
+    }
+
+    /// Parses the bytes of a scenario file, named `path` in errors, as [`Scenario::from_file`]
+    /// does: the fuzzer's entry point (`host-tools fuzz --target scenario`).
+    pub fn from_bytes(path: &str, bytes: &[u8]) -> Result<Self, ScenarioError> {
+        let text = std::str::from_utf8(bytes).map_err(|err| ScenarioError::Io {
+            path: path.to_owned(),
+            source: std::io::Error::new(std::io::ErrorKind::InvalidData, err),
+        })?;
+        Self::from_toml(text).map_err(|message| ScenarioError::Toml { path: path.to_owned(), message })
     }
 
     /// Parses a scenario from TOML text.

@@ -10,7 +10,8 @@
 //!   [`campaign`] (std): scenarios and the paper's campaign;
 //! - [`dataset`] (std): the on-disk format (`shared/spec/dataset-format.md`); [`atomic`] (std):
 //!   folders written completely or not at all;
-//! - [`sil`] (std): the estimator and controller in closed loop with the tunnel;
+//! - [`sil`] (std): the estimator and controller in closed loop with the tunnel; [`fault`] (std):
+//!   sensor faults injected into the estimator's inputs, in SIL runs and replays;
 //! - [`io`], [`frames`] (no_std): the firmware's I/O traits and fixed-rate loop, and the binary
 //!   sample records the QEMU replay exchanges through semihosting;
 //! - `src/bin/firmware.rs` (feature `target`): the STM32F405 firmware.
@@ -26,6 +27,8 @@ pub mod atomic;
 pub mod campaign;
 #[cfg(feature = "std")]
 pub mod dataset;
+#[cfg(feature = "std")]
+pub mod fault;
 pub mod frames;
 pub mod io;
 #[cfg(feature = "std")]

@@ -13,7 +13,8 @@
 //!   paper's analysis, the closed loop, the firmware in QEMU;
 //! - [`report`], [`plot`]: report folders (Markdown, HTML, SVG, JSON);
 //! - [`model`]: loading `--model` (a model folder or its blob) or the built-in tables;
-//! - [`analysis`]: the paper's superposition table on raw recordings.
+//! - [`analysis`]: the paper's superposition table on raw recordings;
+//! - [`reliability`]: the sensor-fault study, the loaders' fuzzer and the soak run.
 
 pub mod analysis;
 pub mod codegen;
@@ -23,6 +24,7 @@ pub mod fit;
 pub mod model;
 pub mod plot;
 pub mod qemu;
+pub mod reliability;
 pub mod replay;
 pub mod report;
 pub mod sil;

@@ -8,6 +8,7 @@ use std::time::Instant;
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use firmware_sim::campaign::Scenario;
+use firmware_sim::fault::FaultSpec;
 use indicatif::{ProgressBar, ProgressStyle};
 
 #[derive(Debug, Parser)]
@@ -43,6 +44,12 @@ enum Command {
     Diagnose(DiagnoseArgs),
     /// Blind campaign: seeded cases with known effects, diagnosed without the answer, scored.
     ValidateDiagnosis(ValidateArgs),
+    /// Inject sensor faults into a dataset's held-out part: detection latency and error per fault.
+    Faults(FaultsArgs),
+    /// Fuzz a loader with seeded, structure-aware mutations of valid inputs.
+    Fuzz(FuzzArgs),
+    /// Step the estimator for a long time on noisy input with random faults.
+    Soak(SoakArgs),
 }
 
 #[derive(Debug, clap::Args)]
@@ -95,7 +102,8 @@ struct QemuReplayArgs {
     /// Replay only the first N samples.
     #[arg(long)]
     samples: Option<usize>,
-    /// Folder for the firmware's input, output and defmt log.
+    /// Folder for the firmware's input, output, defmt log and summary (written completely or
+    /// not at all).
     #[arg(long)]
     out: PathBuf,
     /// QEMU time limit, s.
@@ -114,6 +122,13 @@ struct ReplayArgs {
     /// Folder for the per-run estimate CSVs (replaced atomically).
     #[arg(long)]
     out: PathBuf,
+    /// Inject a sensor fault (repeatable), e.g. `stuck:cp07@10s`, `bias:cp02=0.3@5s`,
+    /// `drop:phi=0.2`, `missing:cmu` (see firmware_sim::fault).
+    #[arg(long = "fault", value_name = "SPEC")]
+    faults: Vec<FaultSpec>,
+    /// Seed of the faults' random choices.
+    #[arg(long = "fault-seed", default_value_t = 1)]
+    fault_seed: u64,
 }
 
 #[derive(Debug, clap::Args)]
@@ -241,6 +256,9 @@ fn main() -> ExitCode {
         Command::QemuReplay(args) => qemu_replay(args),
         Command::Diagnose(args) => diagnose(args),
         Command::ValidateDiagnosis(args) => validate_diagnosis(args),
+        Command::Faults(args) => faults(args),
+        Command::Fuzz(args) => fuzz(args),
+        Command::Soak(args) => soak(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -480,7 +498,14 @@ fn replay(args: ReplayArgs) -> anyhow::Result<()> {
     let (set, source) = host_tools::model::load(args.model.as_deref())?;
     let spinner = spinner(format!("replaying {} runs", dataset.runs.len()));
     let described = format!("data {}, model {source}", args.data.display());
-    let n_runs = host_tools::replay::write_replay(&args.out, &dataset, &set, &described)?;
+    let n_runs = host_tools::replay::write_replay_with_faults(
+        &args.out,
+        &dataset,
+        &set,
+        &described,
+        &args.faults,
+        args.fault_seed,
+    )?;
     spinner.finish_and_clear();
     eprintln!("replayed {n_runs} runs into {} in {:.1} s", args.out.display(), started.elapsed().as_secs_f64());
     Ok(())
@@ -495,9 +520,14 @@ fn qemu_replay(args: QemuReplayArgs) -> anyhow::Result<()> {
         .find(|run| run.meta.file == args.run)
         .with_context(|| format!("no run {} in {}", args.run.display(), args.data.display()))?;
     let timeout = std::time::Duration::from_secs(args.timeout_s);
-    let replay = host_tools::qemu::qemu_replay(run, args.samples, &args.out, timeout)?;
-    let summary = host_tools::qemu::summary(&replay);
-    std::fs::write(args.out.join("summary.txt"), &summary)?;
+    // QEMU works in a temporary folder that becomes `--out` only once the summary is written:
+    // complete or absent, like every other output folder.
+    let mut summary = String::new();
+    firmware_sim::atomic::write_folder::<anyhow::Error>(&args.out, "summary.txt", |tmp| {
+        let replay = host_tools::qemu::qemu_replay(run, args.samples, tmp, timeout)?;
+        summary = host_tools::qemu::summary(&replay);
+        std::fs::write(tmp.join("summary.txt"), &summary).context("writing summary.txt")
+    })?;
     print!("{summary}");
     Ok(())
 }
@@ -607,11 +637,14 @@ struct SilArgs {
     /// Integral feedback gain, 1/s (overrides the model's).
     #[arg(long)]
     ki: Option<f64>,
+    /// Inject a sensor fault into every run (repeatable), e.g. `dead:cp03@5s`, `drop:cl=0.2`.
+    #[arg(long = "fault", value_name = "SPEC")]
+    faults: Vec<FaultSpec>,
 }
 
 /// `sil`: the controller scenarios in closed loop with the synthetic tunnel, as a report folder.
 fn sil(args: SilArgs) -> anyhow::Result<()> {
-    use firmware_sim::sil::{Gains, Mode, SilSettings, TuneGrid, run_scenario, tune};
+    use firmware_sim::sil::{Gains, Mode, SilSettings, TuneGrid, run_scenario_with_faults, tune};
     let started = Instant::now();
     let default = Scenario { duration_s: 20.0, ..Scenario::default() };
     let (scenario, described) = args.scenario.resolve(default, "the paper's campaign, 20 s per run")?;
@@ -637,8 +670,12 @@ fn sil(args: SilArgs) -> anyhow::Result<()> {
     let set = gains.apply(&model_set)?;
     let n_runs = scenario.alphas_deg.len() * Mode::ALL.len();
     let progress = progress_bar(n_runs as u64, "closed-loop runs");
-    let results = run_scenario(&scenario, &set, &Mode::ALL, &settings, &|| progress.inc(1))?;
+    let results = run_scenario_with_faults(&scenario, &set, &Mode::ALL, &settings, &args.faults, &|| progress.inc(1))?;
     progress.set_message("writing the report");
+    let mut described = described;
+    for fault in &args.faults {
+        described.push_str(&format!(", fault {fault}"));
+    }
     let context = host_tools::sil::SilContext { model: source.to_string(), scenario: described, tuning };
     host_tools::sil::write_sil_report(&args.report, &results, &context)
         .with_context(|| format!("writing the report {}", args.report.display()))?;
@@ -651,5 +688,176 @@ fn sil(args: SilArgs) -> anyhow::Result<()> {
     println!("{}", host_tools::sil::verdict(&results));
     println!("report: {}", args.report.join("report.html").display());
     eprintln!("SIL in {:.1} s", started.elapsed().as_secs_f64());
+    Ok(())
+}
+
+#[derive(Debug, clap::Args)]
+struct FaultsArgs {
+    /// Dataset folder (or its manifest.toml).
+    #[arg(long)]
+    data: PathBuf,
+    /// Model folder or model.bin (default: the built-in tables).
+    #[arg(long)]
+    model: Option<PathBuf>,
+    /// Report folder to write (report.md, report.html, faults.json).
+    #[arg(long)]
+    report: PathBuf,
+    /// Seed of the faults' random choices (spikes, dropped samples).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Share of every run, at its end, that is held out (must match the fit's).
+    #[arg(long = "holdout-fraction", default_value_t = host_tools::fit::split::DEFAULT_HOLDOUT_FRACTION)]
+    holdout_fraction: f64,
+}
+
+#[derive(Debug, clap::Args)]
+struct FuzzArgs {
+    /// Loader to fuzz (repeatable): dataset-csv, manifest, blob, scenario; default: all.
+    #[arg(long = "target")]
+    targets: Vec<host_tools::reliability::fuzz::Target>,
+    /// Mutated inputs per target.
+    #[arg(long, default_value_t = 1_000_000)]
+    execs: u64,
+    /// Seed of the mutations.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// An input slower than this is a finding, ms.
+    #[arg(long = "time-limit-ms", default_value_t = 1000)]
+    time_limit_ms: u64,
+    /// Only write the valid seed inputs of every target into DIR/TARGET/ (the corpus for the
+    /// cargo-fuzz targets in fuzz/), then stop.
+    #[arg(long = "write-seeds", value_name = "DIR")]
+    write_seeds: Option<PathBuf>,
+}
+
+#[derive(Debug, clap::Args)]
+struct SoakArgs {
+    /// Steps in all.
+    #[arg(long, default_value_t = 100_000_000)]
+    steps: u64,
+    /// Seed of the input, the noise and the faults.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Independent runs the steps are split into, run in parallel (default: one per core).
+    #[arg(long)]
+    streams: Option<u64>,
+    /// Model folder or model.bin (default: the built-in tables).
+    #[arg(long)]
+    model: Option<PathBuf>,
+}
+
+/// `faults`: the sensor-fault study on held-out data, as a report folder.
+fn faults(args: FaultsArgs) -> anyhow::Result<()> {
+    use host_tools::reliability::faults::{COLUMNS, StudyConfig, fault_study, study_report, table_rows};
+    let started = Instant::now();
+    let dataset = firmware_sim::dataset::load_dataset(&args.data)?;
+    let (set, source) = host_tools::model::load(args.model.as_deref())?;
+    let split = host_tools::fit::split::Split { holdout_fraction: args.holdout_fraction };
+    let config = StudyConfig { split, seed: args.seed, ..StudyConfig::default() };
+    let spinner = spinner("injecting faults".into());
+    let study = fault_study(&dataset, &set, &config)?;
+    let report = study_report(&study, &format!("Data `{}`, model {source}", args.data.display()));
+    let json =
+        serde_json::json!({ "data": args.data.display().to_string(), "model": source.to_string(), "study": study });
+    host_tools::report::write_report(&args.report, &report, "faults.json", &json)
+        .with_context(|| format!("writing the report {}", args.report.display()))?;
+    spinner.finish_and_clear();
+    println!("fault-free held-out RMS: C_l {:.3e}, pressure path {:.3e}", study.clean_rms, study.clean_pressure_rms);
+    println!("{}", COLUMNS.join(" | "));
+    for row in table_rows(&study) {
+        println!("{}", row.join(" | "));
+    }
+    println!("report: {}", args.report.join("report.html").display());
+    eprintln!("fault study in {:.1} s", started.elapsed().as_secs_f64());
+    Ok(())
+}
+
+/// `fuzz`: every loader (or the chosen ones) against mutated inputs; fails on any finding.
+fn fuzz(args: FuzzArgs) -> anyhow::Result<()> {
+    use host_tools::reliability::fuzz::{FuzzConfig, Target, fuzz};
+    let targets = if args.targets.is_empty() { Target::ALL.to_vec() } else { args.targets };
+    if let Some(dir) = &args.write_seeds {
+        return write_seeds(dir, &targets);
+    }
+    let mut n_findings = 0;
+    for target in targets {
+        let config = FuzzConfig {
+            target,
+            execs: args.execs,
+            seed: args.seed,
+            time_limit: std::time::Duration::from_millis(args.time_limit_ms),
+        };
+        let progress = progress_bar(args.execs, "fuzzing");
+        let outcome = fuzz(&config, &|done| progress.set_position(done));
+        progress.finish_and_clear();
+        println!(
+            "{}: {} executions in {:.1} s ({:.0}/s), seed {}: {} accepted, {} rejected with {} error kinds, slowest {} us, {} findings",
+            target.name(),
+            outcome.execs,
+            outcome.elapsed_s,
+            outcome.execs as f64 / outcome.elapsed_s.max(1e-9),
+            outcome.seed,
+            outcome.accepted,
+            outcome.rejected,
+            outcome.errors.len(),
+            outcome.slowest_exec_us,
+            outcome.n_findings
+        );
+        for finding in &outcome.findings {
+            let shown: String = finding.input.chars().take(300).collect();
+            println!("  finding at execution {}: {}\n    input (start): {shown:?}", finding.exec_idx, finding.what);
+        }
+        n_findings += outcome.n_findings;
+    }
+    anyhow::ensure!(n_findings == 0, "{n_findings} findings");
+    Ok(())
+}
+
+/// Writes the seed inputs of `targets` into `dir/TARGET/seed-N` (complete or absent; libFuzzer
+/// adds its own inputs to these folders later, and a new `--write-seeds` replaces them).
+fn write_seeds(dir: &std::path::Path, targets: &[host_tools::reliability::fuzz::Target]) -> anyhow::Result<()> {
+    const MARKER: &str = "SEEDS.md";
+    firmware_sim::atomic::write_folder::<anyhow::Error>(dir, MARKER, |tmp| {
+        std::fs::write(
+            tmp.join(MARKER),
+            "Seed inputs of the loaders' fuzz targets, by `host-tools fuzz --write-seeds`.\n",
+        )?;
+        for &target in targets {
+            let target_dir = tmp.join(target.name());
+            std::fs::create_dir(&target_dir)?;
+            for (idx, seed) in host_tools::reliability::fuzz::seeds(target).iter().enumerate() {
+                std::fs::write(target_dir.join(format!("seed-{idx}")), seed)?;
+            }
+        }
+        Ok(())
+    })?;
+    eprintln!("wrote the seeds of {} targets into {}", targets.len(), dir.display());
+    Ok(())
+}
+
+/// `soak`: a long run on noisy input with random faults; fails if an estimate leaves its bound.
+fn soak(args: SoakArgs) -> anyhow::Result<()> {
+    use host_tools::reliability::soak::{ERROR_BOUND, SoakConfig, soak};
+    let (set, source) = host_tools::model::load(args.model.as_deref())?;
+    let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get) as u64;
+    let config = SoakConfig { steps: args.steps, seed: args.seed, streams: args.streams.unwrap_or(cores) };
+    let spinner = spinner(format!("soaking {} steps", args.steps));
+    let outcome = soak(&set, &config);
+    spinner.finish_and_clear();
+    println!(
+        "soak, model {source}: {} steps in {} streams, seed {}, {:.1} s ({:.2e} steps/s); {} fault episodes; \
+         non-finite steps {}; worst |C_l - reference| {:.3e} (bound {ERROR_BOUND}); worst |C_l| {:.3e}; state resets {}",
+        outcome.steps,
+        outcome.streams,
+        outcome.seed,
+        outcome.elapsed_s,
+        outcome.steps as f64 / outcome.elapsed_s.max(1e-9),
+        outcome.fault_episodes,
+        outcome.non_finite_steps,
+        outcome.worst_error,
+        outcome.worst_abs_cl,
+        outcome.state_resets
+    );
+    anyhow::ensure!(outcome.passed(), "the soak failed: an estimate was not finite or left the bound");
     Ok(())
 }

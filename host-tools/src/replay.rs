@@ -3,7 +3,9 @@
 
 use estimator_core::coeffs::N_TAPS;
 use estimator_core::{CoefficientSet, Estimator, Input, Output};
+use firmware_sim::campaign::mix_seed;
 use firmware_sim::dataset::Run;
+use firmware_sim::fault::{FaultSpec, apply_to_run};
 
 /// The core's input at one recorded sample (f64 channels narrowed to f32; missing stays NaN).
 #[must_use]
@@ -90,9 +92,38 @@ pub fn write_replay(
     set: &CoefficientSet,
     source: &str,
 ) -> Result<usize, ReplayError> {
+    write_replay_with_faults(dir, dataset, set, source, &[], 0)
+}
+
+/// [`write_replay`] with the sensor `faults` injected into every run (the random choices of
+/// run `i` seeded by `mix_seed(seed, i)`); the replay files then hold the faulty inputs and
+/// balance, and `replay.toml` lists the faults.
+pub fn write_replay_with_faults(
+    dir: &std::path::Path,
+    dataset: &firmware_sim::dataset::Dataset,
+    set: &CoefficientSet,
+    source: &str,
+    faults: &[FaultSpec],
+    seed: u64,
+) -> Result<usize, ReplayError> {
     use rayon::prelude::*;
-    let tables: Vec<String> = dataset.runs.par_iter().map(|run| replay_csv(run, &replay_run(set, run))).collect();
+    let tables: Vec<String> = dataset
+        .runs
+        .par_iter()
+        .enumerate()
+        .map(|(run_idx, run)| {
+            if faults.is_empty() {
+                return replay_csv(run, &replay_run(set, run));
+            }
+            let faulty = apply_to_run(run, faults, mix_seed(seed, run_idx as u64));
+            replay_csv(&faulty, &replay_run(set, &faulty))
+        })
+        .collect();
     let mut manifest = format!("# Written by host-tools replay\nsource = {source:?}\ncolumns = {:?}\n", REPLAY_COLUMNS);
+    if !faults.is_empty() {
+        let names: Vec<String> = faults.iter().map(ToString::to_string).collect();
+        manifest.push_str(&format!("faults = {names:?}\nfault_seed = {seed}\n"));
+    }
     for run in &dataset.runs {
         manifest.push_str(&format!(
             "\n[[run]]\nfile = {:?}\nkind = {:?}\nalpha_deg = {}\n",

@@ -25,3 +25,7 @@ mod firmware;
 
 // The sim-to-real gap diagnosis: contract JSON, named effects, clean recordings, a blind slice.
 mod diagnose;
+
+// Reliability: sensor faults in replays and the SIL loop, the fault study's goals, the loaders'
+// fuzzer, the soak, and folders that stay complete or absent when the writer is killed.
+mod reliability;

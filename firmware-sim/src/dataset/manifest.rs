@@ -15,7 +15,7 @@ const RUN_KEYS: [&str; 4] = ["file", "kind", "alpha_deg", "sample_hz"];
 
 /// The contents of a manifest, without the run data.
 #[derive(Debug, Clone, PartialEq)]
-pub(super) struct Manifest {
+pub struct Manifest {
     /// Free-stream conditions.
     pub tunnel: Tunnel,
     /// Wing geometry.

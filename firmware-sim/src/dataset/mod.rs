@@ -11,7 +11,8 @@ mod read;
 mod write;
 
 pub use error::DatasetError;
-pub use read::{load_dataset, load_run};
+pub use manifest::Manifest;
+pub use read::{load_dataset, load_run, parse_manifest_bytes, parse_run};
 pub use write::write_dataset;
 
 use std::path::PathBuf;

@@ -6,7 +6,7 @@ use std::path::Path;
 use csv::{ByteRecord, Position, ReaderBuilder};
 use rayon::prelude::*;
 
-use super::manifest::parse_manifest;
+use super::manifest::{Manifest, parse_manifest};
 use super::{Channels, Dataset, DatasetError, N_TAPS, Run, RunMeta, Tunnel, Wing};
 
 /// Name of the manifest inside a dataset folder.
@@ -82,9 +82,8 @@ const JITTER: f64 = 0.01;
 pub fn load_dataset(dir_or_manifest: &Path) -> Result<Dataset, DatasetError> {
     let manifest_path =
         if dir_or_manifest.is_dir() { dir_or_manifest.join(MANIFEST) } else { dir_or_manifest.to_path_buf() };
-    let text =
-        fs::read_to_string(&manifest_path).map_err(DatasetError::io(&manifest_path, "cannot read the manifest"))?;
-    let manifest = parse_manifest(&manifest_path, &text)?;
+    let bytes = fs::read(&manifest_path).map_err(DatasetError::io(&manifest_path, "cannot read the manifest"))?;
+    let manifest = parse_manifest_bytes(&manifest_path, &bytes)?;
     let base = manifest_path.parent().unwrap_or_else(|| Path::new(""));
     let (tunnel, wing) = (manifest.tunnel, manifest.wing);
     let loaded: Vec<Result<Run, DatasetError>> =
@@ -109,7 +108,29 @@ pub fn load_dataset(dir_or_manifest: &Path) -> Result<Dataset, DatasetError> {
 /// [`DatasetError::MissingTime`], [`DatasetError::NonUniformTime`], [`DatasetError::EmptyRun`].
 pub fn load_run(path: &Path, meta: RunMeta, tunnel: &Tunnel, wing: &Wing) -> Result<Run, DatasetError> {
     let bytes = fs::read(path).map_err(DatasetError::io(path, "cannot read the run file"))?;
-    let mut reader = ReaderBuilder::new().has_headers(false).flexible(true).from_reader(bytes.as_slice());
+    parse_run(path, &bytes, meta, tunnel, wing)
+}
+
+/// The bytes of a manifest, read from `file` (named in errors), as [`load_dataset`] parses them:
+/// the fuzzer's entry point (`host-tools fuzz --target manifest`).
+///
+/// # Errors
+/// [`DatasetError::Io`] for text that is not UTF-8, and every error of the manifest's syntax,
+/// keys and values.
+pub fn parse_manifest_bytes(file: &Path, bytes: &[u8]) -> Result<Manifest, DatasetError> {
+    let text = std::str::from_utf8(bytes).map_err(|err| {
+        DatasetError::io(file, "cannot read the manifest")(std::io::Error::new(std::io::ErrorKind::InvalidData, err))
+    })?;
+    parse_manifest(file, text)
+}
+
+/// The bytes of a run file, read from `path` (named in errors), as [`load_run`] parses them:
+/// the fuzzer's entry point (`host-tools fuzz --target dataset-csv`).
+///
+/// # Errors
+/// As [`load_run`], except [`DatasetError::Io`].
+pub fn parse_run(path: &Path, bytes: &[u8], meta: RunMeta, tunnel: &Tunnel, wing: &Wing) -> Result<Run, DatasetError> {
+    let mut reader = ReaderBuilder::new().has_headers(false).flexible(true).from_reader(bytes);
     let mut header = ByteRecord::new();
     next_record(path, &mut reader, &mut header)?;
     let slots = map_header(path, &header)?;

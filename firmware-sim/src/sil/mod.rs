@@ -14,7 +14,8 @@
 //! same noise (common random numbers), so differences are the controller's.
 //!
 //! Metrics are taken on the noise-free aerodynamic moment of the tunnel ([`Sample::cl_aero`]),
-//! after a warm-up in which the estimator's filters settle.
+//! after a warm-up in which the estimator's filters settle. Sensor faults ([`crate::fault`]) can
+//! be injected into what the estimator and the feedback read ([`run_scenario_with_faults`]).
 
 use estimator_core::controller::{Blocks, Controller, ControllerInput};
 use estimator_core::{CoefficientSet, Estimator, Health, Input};
@@ -22,8 +23,12 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::campaign::{Scenario, ScenarioError, mix_seed};
+use crate::fault::{FaultInjector, FaultSpec};
 use crate::tunnel::excitation::HoldSequence;
 use crate::tunnel::{Sample, TunnelConfig, TunnelSim};
+
+/// Stream of [`mix_seed`] (with a run's noise seed) for the random choices of injected faults.
+const FAULT_STREAM: u64 = 0xFA_0017;
 
 /// Errors of a SIL run.
 #[derive(Debug, thiserror::Error)]
@@ -222,8 +227,11 @@ pub struct RunConditions<'a> {
     pub duration_s: f64,
     /// Roll command, deg.
     pub roll_cmd_deg: &'a HoldSequence,
-    /// Seed of the tunnel's noise.
+    /// Seed of the tunnel's noise (and, mixed, of the injected faults' random choices).
     pub noise_seed: u64,
+    /// Sensor faults injected into the estimator's inputs and the balance reading the feedback
+    /// sees (`crate::fault`); the metrics stay on the tunnel's true moment.
+    pub faults: &'a [FaultSpec],
 }
 
 /// Runs the estimator and controller of `set` in closed loop with the tunnel.
@@ -243,14 +251,17 @@ pub fn run_closed_loop(
     let cmu_max = f64::from(set.controller.cmu_max);
     let mut acc = Accumulator::default();
     let mut trace = Trace::default();
+    let mut injector = FaultInjector::new(run.faults, run.sample_hz, mix_seed(run.noise_seed, FAULT_STREAM));
     for k in 0..n_samples {
         let sample = tunnel.sample();
-        let output = estimator.step(&estimator_input(&sample, run.alpha_deg));
+        let (mut input, mut measured_cl) = (estimator_input(&sample, run.alpha_deg), sample.cl);
+        injector.apply(sample.t_s, &mut input, &mut measured_cl);
+        let output = estimator.step(&input);
         let (cmu_cmd, saturated) = match mode.blocks() {
             None => ([0.0; 2], false),
             Some(blocks) => {
                 let disturbance = if mode.with_coupling() { output.cl_roll + output.coupling } else { output.cl_roll };
-                let input = ControllerInput { disturbance_cl: disturbance, measured_cl: sample.cl as f32, alpha_rad };
+                let input = ControllerInput { disturbance_cl: disturbance, measured_cl: measured_cl as f32, alpha_rad };
                 let mut health = Health::default();
                 let demand = controller.step(set, estimator.plants(), &input, blocks, &mut health);
                 (demand.cmu.map(f64::from), health.has(Health::CMU_SATURATED))
@@ -431,6 +442,18 @@ pub fn run_scenario(
     settings: &SilSettings,
     on_run_done: &(dyn Fn() + Sync),
 ) -> Result<SilResults, SilError> {
+    run_scenario_with_faults(scenario, set, modes, settings, &[], on_run_done)
+}
+
+/// [`run_scenario`] with the sensor `faults` injected into every run (`crate::fault`).
+pub fn run_scenario_with_faults(
+    scenario: &Scenario,
+    set: &CoefficientSet,
+    modes: &[Mode],
+    settings: &SilSettings,
+    faults: &[FaultSpec],
+    on_run_done: &(dyn Fn() + Sync),
+) -> Result<SilResults, SilError> {
     check(scenario, set)?;
     let config = scenario.tunnel_config();
     let roll = roll_command(scenario);
@@ -450,6 +473,7 @@ pub fn run_scenario(
                 duration_s: scenario.duration_s,
                 roll_cmd_deg: &roll,
                 noise_seed: noise_seed(scenario.seed, alpha_idx),
+                faults,
             };
             let outcome = run_closed_loop(&conditions, set, mode, settings);
             on_run_done();
