@@ -201,11 +201,18 @@ fn killed_writers_leave_complete_or_absent_folders() {
     let expected_model = listing(&reference.path().join("model")).unwrap();
     let expected_report = listing(&reference.path().join("report")).unwrap();
     let exe = std::env::current_exe().unwrap();
-    // Kill delays after the child's first complete round, ms: spread over several rewrites.
-    let delays_ms = [0u64, 3, 7, 12, 20, 31, 45, 60, 85, 120];
+    // Kill delays after the child's first complete round, ms: spread over several rewrites,
+    // then repeated (up to three passes) until some kill has landed inside a write: on a
+    // loaded machine the first pass can miss every write.
+    let delays_ms: Vec<u64> = [0u64, 3, 7, 12, 20, 31, 45, 60, 85, 120].repeat(3);
     let root = tempfile::tempdir().unwrap();
     let mut interrupted_rounds = 0;
-    for (round, delay_ms) in delays_ms.into_iter().enumerate() {
+    let mut rounds = 0;
+    for (round, delay_ms) in delays_ms.iter().copied().enumerate() {
+        if round >= 10 && interrupted_rounds > 0 {
+            break;
+        }
+        rounds += 1;
         let dir: PathBuf = root.path().join(format!("round{round}"));
         std::fs::create_dir(&dir).unwrap();
         let mut child = Command::new(&exe)
@@ -240,6 +247,6 @@ fn killed_writers_leave_complete_or_absent_folders() {
         write_model_and_report(&dir, false);
         assert_eq!(listing(&dir).unwrap(), ["model", "report"], "round {round}");
     }
-    println!("{interrupted_rounds} of {} kills interrupted a write", delays_ms.len());
+    println!("{interrupted_rounds} of {rounds} kills interrupted a write");
     assert!(interrupted_rounds > 0, "no kill landed inside a write: the test proved nothing");
 }
