@@ -85,7 +85,8 @@ pub struct Signature {
     /// What each group of the structure probe explains of the residual, over the noise
     /// variance.
     pub probe_to_noise: BTreeMap<String, f64>,
-    /// Gap beyond noise per kind of run (mean square over the noise variance).
+    /// Gap beyond noise per kind of run (mean square over the noise variance), keyed by the
+    /// kind (`roll`) and by kind and angle of attack (`roll@20`).
     pub gap_to_noise_by_kind: BTreeMap<String, f64>,
 }
 
@@ -109,6 +110,20 @@ impl Signature {
     fn of(&self, key: &str) -> f64 {
         self.explained_to_noise.get(key).copied().unwrap_or(0.0)
     }
+
+    /// The sim's own gap on runs of this kind at this angle of attack (the kind's mean when the
+    /// angle is not in the signature).
+    fn gap_of(&self, kind: &str, alpha_deg: f64) -> f64 {
+        self.gap_to_noise_by_kind
+            .get(&kind_alpha_key(kind, alpha_deg))
+            .or_else(|| self.gap_to_noise_by_kind.get(kind))
+            .copied()
+            .unwrap_or(0.0)
+    }
+}
+
+fn kind_alpha_key(kind: &str, alpha_deg: f64) -> String {
+    format!("{kind}@{alpha_deg}")
 }
 
 /// The signature of `set` on `dataset` (the data it was fitted on): every candidate measured on
@@ -247,9 +262,11 @@ pub fn diagnose(
     for (idx, run) in runs.iter().enumerate() {
         let one = [base_segments[idx].clone()];
         let g = regression::heldout_gap(&one, &[Vec::new()], &[], &[true]);
-        let slot = gap_by_kind.entry(run.kind.as_str().to_owned()).or_default();
-        slot.0 += to_noise(g.mse_before - g.noise_var) * g.n as f64;
-        slot.1 += g.n;
+        for key in [run.kind.as_str().to_owned(), kind_alpha_key(run.kind.as_str(), run.alpha_deg)] {
+            let slot = gap_by_kind.entry(key).or_default();
+            slot.0 += to_noise(g.mse_before - g.noise_var) * g.n as f64;
+            slot.1 += g.n;
+        }
     }
     let gap_by_kind: BTreeMap<String, f64> =
         gap_by_kind.into_iter().map(|(kind, (sum, n))| (kind, if n == 0 { 0.0 } else { sum / n as f64 })).collect();
@@ -258,7 +275,7 @@ pub fn diagnose(
             let kind = runs[idx].kind.as_str();
             let one = [base_segments[idx].clone()];
             let g = regression::heldout_gap(&one, &[Vec::new()], &[], &[true]);
-            to_noise(g.mse_before - g.noise_var) - floor.gap_to_noise_by_kind.get(kind).copied().unwrap_or(0.0)
+            to_noise(g.mse_before - g.noise_var) - floor.gap_of(kind, runs[idx].alpha_deg)
                 >= min_ratio
         })
         .collect();
@@ -353,8 +370,8 @@ pub fn diagnose(
             noise_rms: finite(stream_gap.noise_var.sqrt()),
             heldout_raw_rms: finite(stream_gap.mse_before.sqrt()),
             floor_rms: finite(
-                (floor.gap_to_noise_by_kind.values().copied().sum::<f64>().max(0.0)
-                    / floor.gap_to_noise_by_kind.len().max(1) as f64
+                (floor.gap_to_noise_by_kind.iter().filter(|(k, _)| !k.contains('@')).map(|(_, v)| *v).sum::<f64>().max(0.0)
+                    / floor.gap_to_noise_by_kind.keys().filter(|k| !k.contains('@')).count().max(1) as f64
                     * gap.noise_var)
                     .sqrt(),
             ),
@@ -456,7 +473,7 @@ fn balance_effect(
     let (mut floor_sum, mut count) = (0.0, 0usize);
     for (run, touched) in runs.iter().zip(&profiled.fit.touched) {
         if *touched {
-            floor_sum += floor.gap_to_noise_by_kind.get(run.kind.as_str()).copied().unwrap_or(0.0).max(0.0)
+            floor_sum += floor.gap_of(run.kind.as_str(), run.alpha_deg).max(0.0)
                 * run.heldout.len() as f64;
             count += run.heldout.len();
         }
