@@ -275,8 +275,7 @@ pub fn diagnose(
             let kind = runs[idx].kind.as_str();
             let one = [base_segments[idx].clone()];
             let g = regression::heldout_gap(&one, &[Vec::new()], &[], &[true]);
-            to_noise(g.mse_before - g.noise_var) - floor.gap_of(kind, runs[idx].alpha_deg)
-                >= min_ratio
+            to_noise(g.mse_before - g.noise_var) - floor.gap_of(kind, runs[idx].alpha_deg) >= min_ratio
         })
         .collect();
     let own_signature = Signature {
@@ -370,7 +369,13 @@ pub fn diagnose(
             noise_rms: finite(stream_gap.noise_var.sqrt()),
             heldout_raw_rms: finite(stream_gap.mse_before.sqrt()),
             floor_rms: finite(
-                (floor.gap_to_noise_by_kind.iter().filter(|(k, _)| !k.contains('@')).map(|(_, v)| *v).sum::<f64>().max(0.0)
+                (floor
+                    .gap_to_noise_by_kind
+                    .iter()
+                    .filter(|(k, _)| !k.contains('@'))
+                    .map(|(_, v)| *v)
+                    .sum::<f64>()
+                    .max(0.0)
                     / floor.gap_to_noise_by_kind.keys().filter(|k| !k.contains('@')).count().max(1) as f64
                     * gap.noise_var)
                     .sqrt(),
@@ -473,8 +478,7 @@ fn balance_effect(
     let (mut floor_sum, mut count) = (0.0, 0usize);
     for (run, touched) in runs.iter().zip(&profiled.fit.touched) {
         if *touched {
-            floor_sum += floor.gap_of(run.kind.as_str(), run.alpha_deg).max(0.0)
-                * run.heldout.len() as f64;
+            floor_sum += floor.gap_of(run.kind.as_str(), run.alpha_deg).max(0.0) * run.heldout.len() as f64;
             count += run.heldout.len();
         }
     }

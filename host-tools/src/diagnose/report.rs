@@ -32,9 +32,18 @@ fn fmt(value: f64) -> String {
     format!("{value:.3e}")
 }
 
+/// A parameter value: plain for ordinary magnitudes, scientific for small or large ones.
+fn param(value: &serde_json::Value) -> String {
+    match value.as_f64() {
+        Some(x) if x != 0.0 && (x.abs() < 1e-2 || x.abs() >= 1e4) => format!("{x:.4e}"),
+        Some(x) => format!("{x:.4}"),
+        None => value.to_string(),
+    }
+}
+
 fn verdict_section(diagnosis: &Diagnosis) -> Section {
     let mut paragraphs = vec![format!(
-        "**Verdict: {}.** Held-out gap {} beyond a noise RMS of {} (raw residual RMS {}, {} stream).",
+        "Verdict: {}. Held-out gap {} beyond a noise RMS of {} (raw residual RMS {}, {} stream).",
         diagnosis.verdict.as_str(),
         fmt(diagnosis.gap.heldout_rms),
         fmt(diagnosis.gap.noise_rms),
@@ -57,12 +66,8 @@ fn verdict_section(diagnosis: &Diagnosis) -> Section {
         .effects
         .iter()
         .map(|effect| {
-            let params = effect
-                .params
-                .iter()
-                .map(|(k, v)| format!("{k} = {}", v.as_f64().map_or_else(|| v.to_string(), |x| format!("{x:.4}"))))
-                .collect::<Vec<_>>()
-                .join(", ");
+            let params =
+                effect.params.iter().map(|(k, v)| format!("{k} = {}", param(v))).collect::<Vec<_>>().join(", ");
             vec![
                 format!("`{}`", effect.name),
                 effect.block.clone(),
@@ -199,12 +204,7 @@ fn candidates_section(diagnosis: &Diagnosis) -> Section {
         .candidates
         .iter()
         .map(|c| {
-            let hyper = c
-                .hyper
-                .iter()
-                .map(|(k, v)| format!("{k} = {}", v.as_f64().map_or_else(|| v.to_string(), |x| format!("{x:.4}"))))
-                .collect::<Vec<_>>()
-                .join(", ");
+            let hyper = c.hyper.iter().map(|(k, v)| format!("{k} = {}", param(v))).collect::<Vec<_>>().join(", ");
             vec![
                 format!("`{}`", c.name),
                 c.block.clone(),
