@@ -129,3 +129,14 @@ fn blind_campaign_slice_runs_and_scores() {
     let right = records.iter().filter(|r| r.correct).count();
     assert!(right >= 2, "{records:#?}");
 }
+
+/// A recording at another sample rate than the sim's step is refused with the run named, not
+/// diagnosed on a wrong time scale.
+#[test]
+fn recording_at_another_rate_is_refused_naming_the_run() {
+    let dataset = Scenario { sample_hz: 500.0, duration_s: 2.0, ..scenario(3) }.simulate(&|| {}).expect("simulates");
+    let set = estimator_core::coeffs::DEFAULT;
+    let error = diagnose(&dataset, Some((&set, "built-in".into())), &DiagnoseConfig::default(), &|_| {}).unwrap_err();
+    let message = error.to_string();
+    assert!(message.contains("runs/") && message.contains("500") && message.contains("1000"), "{message}");
+}

@@ -143,6 +143,16 @@ pub enum DiagnoseError {
     /// The dataset has no samples to diagnose.
     #[error("the dataset has no runs with samples")]
     Empty,
+    /// A run's sample rate is not the sim's fixed step.
+    #[error("{file}: sampled at {sample_hz} Hz, but the sim steps at {model_hz} Hz (fit a model on data at this rate)")]
+    Rate {
+        /// The run.
+        file: String,
+        /// Its sample rate, Hz.
+        sample_hz: f64,
+        /// The sim's rate, Hz.
+        model_hz: f64,
+    },
 }
 
 /// The sim used, for the report.
@@ -174,6 +184,14 @@ pub fn diagnose(
             (fit_dataset(dataset, &fit_config, &|_| {})?.set, SimSource::FittedOnTraining)
         }
     };
+    let model_hz = 1.0 / f64::from(set.dt_s);
+    if let Some(run) = dataset.runs.iter().find(|run| (run.meta.sample_hz / model_hz - 1.0).abs() > 0.01) {
+        return Err(DiagnoseError::Rate {
+            file: run.meta.file.display().to_string(),
+            sample_hz: run.meta.sample_hz,
+            model_hz,
+        });
+    }
     progress("running the sim on the recorded inputs");
     let runs = streams::build(dataset, &set, &config.split, config.heldout_only);
     let context = Context {
