@@ -184,7 +184,8 @@ pub fn diagnose(
             (fit_dataset(dataset, &fit_config, &|_| {})?.set, SimSource::FittedOnTraining)
         }
     };
-    let model_hz = 1.0 / f64::from(set.dt_s);
+    // The step is stored in f32: round its rate to a millihertz for the comparison and the message.
+    let model_hz = (1e3 / f64::from(set.dt_s)).round() / 1e3;
     if let Some(run) = dataset.runs.iter().find(|run| (run.meta.sample_hz / model_hz - 1.0).abs() > 0.01) {
         return Err(DiagnoseError::Rate {
             file: run.meta.file.display().to_string(),
