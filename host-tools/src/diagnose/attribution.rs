@@ -58,10 +58,7 @@ pub fn profile(
 ) -> Option<Profiled> {
     let segments = segments(runs, residuals);
     let sample_hz = runs.first()?.sample_hz;
-    let mut grid = candidate.grid(sample_hz);
-    if candidate == Candidate::VortexLag {
-        grid.retain(|hyper| hyper.iter().all(|(_, tau_s)| *tau_s >= context.slow_tau_min_s));
-    }
+    let grid = candidate.grid(sample_hz, context.slow_tau_min_s);
     let fits: Vec<(Vec<(&'static str, f64)>, Fit)> = grid
         .par_iter()
         .filter_map(|hyper| {
@@ -75,18 +72,6 @@ pub fn profile(
     let heldout = regression::heldout_gap(&segments, &columns, &fit.beta, &fit.touched);
     let k = candidate.n_columns(runs.len()) + hyper.len();
     let delta_bic = delta_bic(&fit, autocorrelation_time, k);
-    if std::env::var_os("DIAG_DEBUG").is_some() {
-        eprintln!(
-            "{:<18} {:?} beta {:?} heldout before {:.3e} after {:.3e} noise {:.3e} explained {:.3e}",
-            candidate.name(),
-            hyper,
-            fit.beta,
-            heldout.mse_before,
-            heldout.mse_after,
-            heldout.noise_var,
-            fit.explained_per_sample()
-        );
-    }
     Some(Profiled { candidate, hyper, fit, delta_bic, profile, heldout })
 }
 

@@ -137,14 +137,19 @@ impl Candidate {
         }
     }
 
-    /// Names of the nonlinear parameters profiled on a grid, with the grid.
+    /// Names of the nonlinear parameters profiled on a grid, with the grid; the vortex lag's
+    /// time constants start at `slow_tau_min_s` ([`Context::slow_tau_min_s`]).
     #[must_use]
-    pub fn grid(self, sample_hz: f64) -> Vec<Vec<(&'static str, f64)>> {
+    pub fn grid(self, sample_hz: f64, slow_tau_min_s: f64) -> Vec<Vec<(&'static str, f64)>> {
         let dt_s = 1.0 / sample_hz;
         match self {
             Self::ActuatorDelay => log_grid(0.5 * dt_s, 0.25, 40).into_iter().map(|d| vec![("delay_s", d)]).collect(),
             Self::ActuatorLag => log_grid(dt_s, 0.5, 36).into_iter().map(|tau| vec![("tau_s", tau)]).collect(),
-            Self::VortexLag => log_grid(0.03, 5.0, 30).into_iter().map(|tau| vec![("tau_s", tau)]).collect(),
+            Self::VortexLag => log_grid(0.03, 5.0, 30)
+                .into_iter()
+                .filter(|tau| *tau >= slow_tau_min_s)
+                .map(|tau| vec![("tau_s", tau)])
+                .collect(),
             Self::BalanceResonance => {
                 let top_hz = (0.35 * sample_hz).min(250.0);
                 let mut grid = Vec::new();

@@ -213,8 +213,7 @@ pub fn diagnose(
     let noise_var = regression::difference_noise_var(&base_segments, None);
     let autocorrelation_time = regression::integrated_autocorrelation(&base_segments, 200);
     let min_explained = MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE * noise_var;
-    let first_round =
-        profile_all(&runs, &residuals, &context, autocorrelation_time, noise_var, config.signature.as_ref());
+    let first_round = profile_all(&runs, &residuals, &context, autocorrelation_time);
     let to_noise = |value: f64| value / noise_var.max(f64::MIN_POSITIVE);
     let floor = config.signature.clone().unwrap_or_default();
     let excess = |p: &Profiled| to_noise(p.explained()) - floor.of(p.candidate.name());
@@ -235,7 +234,7 @@ pub fn diagnose(
         }
         remainder = attribution::subtract(&best, &runs, &remainder, &context);
         named.push(best);
-        round = profile_all(&runs, &remainder, &context, autocorrelation_time, noise_var, config.signature.as_ref());
+        round = profile_all(&runs, &remainder, &context, autocorrelation_time);
     }
 
     progress("probing the remainder and the pressure channels");
@@ -277,25 +276,26 @@ pub fn diagnose(
     // The gap as it stands, on every run's held-out part, and per kind beyond the signature.
     let all_touched = vec![true; runs.len()];
     let gap = regression::heldout_gap(&base_segments, &vec![Vec::new(); runs.len()], &[], &all_touched);
+    // Each run's held-out gap beyond noise, in noise variances, and its sample count.
+    let run_gaps: Vec<(f64, usize)> = base_segments
+        .iter()
+        .map(|segment| {
+            let g = regression::heldout_gap(std::slice::from_ref(segment), &[Vec::new()], &[], &[true]);
+            (to_noise(g.mse_before - g.noise_var), g.n)
+        })
+        .collect();
     let mut gap_by_kind: BTreeMap<String, (f64, usize)> = BTreeMap::new();
-    for (idx, run) in runs.iter().enumerate() {
-        let one = [base_segments[idx].clone()];
-        let g = regression::heldout_gap(&one, &[Vec::new()], &[], &[true]);
+    for (run, &(gap_to_noise, n)) in runs.iter().zip(&run_gaps) {
         for key in [run.kind.as_str().to_owned(), kind_alpha_key(run.kind.as_str(), run.alpha_deg)] {
             let slot = gap_by_kind.entry(key).or_default();
-            slot.0 += to_noise(g.mse_before - g.noise_var) * g.n as f64;
-            slot.1 += g.n;
+            slot.0 += gap_to_noise * n as f64;
+            slot.1 += n;
         }
     }
     let gap_by_kind: BTreeMap<String, f64> =
         gap_by_kind.into_iter().map(|(kind, (sum, n))| (kind, if n == 0 { 0.0 } else { sum / n as f64 })).collect();
     let excess_runs: Vec<usize> = (0..runs.len())
-        .filter(|&idx| {
-            let kind = runs[idx].kind.as_str();
-            let one = [base_segments[idx].clone()];
-            let g = regression::heldout_gap(&one, &[Vec::new()], &[], &[true]);
-            to_noise(g.mse_before - g.noise_var) - floor.gap_of(kind, runs[idx].alpha_deg) >= min_ratio
-        })
+        .filter(|&idx| run_gaps[idx].0 - floor.gap_of(runs[idx].kind.as_str(), runs[idx].alpha_deg) >= min_ratio)
         .collect();
     let own_signature = Signature {
         explained_to_noise: first_round
@@ -443,8 +443,6 @@ fn profile_all(
     residuals: &[Vec<f64>],
     context: &Context<'_>,
     autocorrelation_time: f64,
-    noise_var: f64,
-    signature: Option<&Signature>,
 ) -> Vec<Profiled> {
     let mut all: Vec<Profiled> = Candidate::ALL
         .iter()
@@ -452,7 +450,6 @@ fn profile_all(
         .collect();
     // Ranked by the evidence itself; the signature's floor decides only whether the leader
     // qualifies (subtracting floors measured on other data would add their noise to the ranking).
-    let _ = (noise_var, signature);
     all.sort_by(|a, b| b.delta_bic.total_cmp(&a.delta_bic));
     // Candidates the evidence cannot tell apart from the leader (within MIN_DELTA_BIC): the one
     // with the fewest parameters leads (the pair is reported as confounded).

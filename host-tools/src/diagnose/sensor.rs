@@ -355,24 +355,14 @@ fn gaussian_tail(z: f64) -> f64 {
     poly * (-x * x).exp()
 }
 
-/// 1.4826 times the median absolute deviation of the training innovations.
+/// The robust spread of the training innovations ([`regression::mad_sigma`]).
 fn robust_sigma(segments: &[Segment<'_>]) -> f64 {
     let mut values: Vec<f64> = segments
         .iter()
         .flat_map(|segment| segment.training.clone().map(|i| segment.residual[i]))
         .filter(|v| v.is_finite())
         .collect();
-    if values.is_empty() {
-        return f64::INFINITY;
-    }
-    let median = quantile(&mut values, 0.5);
-    let mut deviations: Vec<f64> = values.iter().map(|v| (v - median).abs()).collect();
-    1.4826 * quantile(&mut deviations, 0.5)
-}
-
-fn quantile(values: &mut [f64], q: f64) -> f64 {
-    let k = ((values.len() - 1) as f64 * q).round() as usize;
-    *values.select_nth_unstable_by(k, f64::total_cmp).1
+    regression::mad_sigma(&mut values).unwrap_or(f64::INFINITY)
 }
 
 /// Start of the first stretch of at least 10 missing samples of the channel, s.

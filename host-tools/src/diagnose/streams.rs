@@ -11,11 +11,12 @@
 
 use std::ops::Range;
 
-use estimator_core::coeffs::{N_TAPS, PRESSURE_RANK};
+use estimator_core::coeffs::N_TAPS;
 use estimator_core::plant::Plant;
 use estimator_core::{CoefficientSet, Estimator, Input};
 use firmware_sim::dataset::{Dataset, Run, RunKind};
 
+use crate::fit::pressure::{PressureFilterF64, PressureModelF64};
 use crate::fit::signals::{differentiate, hold_missing, zero_phase_lowpass};
 use crate::fit::split::Split;
 use crate::replay::input_at;
@@ -185,7 +186,7 @@ fn build_run(run: &Run, set: &CoefficientSet, split: &Split) -> RunStreams {
         .map(|cmu| cmu.into_iter().map(|value| value.max(0.0)).collect::<Vec<f64>>());
 
     let cp: Vec<Vec<f64>> = run.channels.cp.iter().map(Clone::clone).collect();
-    let innovation = innovations(run, set, dt_s);
+    let innovation = innovations(run, set, &phi_rad, &cmu, dt_s);
     let cp_dot = cp
         .iter()
         .map(|channel| {
@@ -241,44 +242,25 @@ pub fn central_difference(values: &[f64], dt_s: f64) -> Vec<f64> {
 /// that only a gross fault (which would otherwise drag the shared modes) is kept out.
 const GATE_SIGMA: f64 = 6.0;
 
-/// The pressure filter's one-step innovations per channel, in f64: `cp - (C (A a + B u) +
-/// cp_mean)`, with the steady-state gain applied to the channels inside the gate (the core's
-/// pressure.rs, without its fault isolation so that every channel's innovation is reported).
-fn innovations(run: &Run, set: &CoefficientSet, dt_s: f64) -> Vec<Vec<f64>> {
-    let model = &set.pressure;
-    let n = run.channels.len();
-    let phi_rad: Vec<f64> = hold_missing(&run.channels.phi_deg, 0.0).iter().map(|phi| phi.to_radians()).collect();
-    let (phi_dot, _) = differentiate(&phi_rad, &set.rate_filter, dt_s);
-    let cmu = [hold_missing(&run.channels.cmu_port, 0.0), hold_missing(&run.channels.cmu_stbd, 0.0)];
-    let f = |value: f32| f64::from(value);
-    let mut modes = [0.0f64; PRESSURE_RANK];
-    let mut out: Vec<Vec<f64>> = (0..N_TAPS).map(|_| Vec::with_capacity(n)).collect();
-    for idx in 0..n {
-        let inputs = [phi_rad[idx], phi_dot[idx], cmu[0][idx].max(0.0), cmu[1][idx].max(0.0), 1.0];
-        let predicted: [f64; PRESSURE_RANK] = std::array::from_fn(|row| {
-            (0..PRESSURE_RANK).map(|col| f(model.a[row][col]) * modes[col]).sum::<f64>()
-                + inputs.iter().enumerate().map(|(col, u)| f(model.b[row][col]) * u).sum::<f64>()
-        });
-        let mut used = [0.0f64; N_TAPS];
-        for tap in 0..N_TAPS {
-            let measured = run.channels.cp[tap][idx];
-            if !measured.is_finite() {
-                out[tap].push(f64::NAN);
-                continue;
-            }
-            let expected = (0..PRESSURE_RANK).map(|col| f(model.c[tap][col]) * predicted[col]).sum::<f64>()
-                + f(model.cp_mean[tap]);
-            let nu = measured - expected;
-            out[tap].push(nu);
-            if nu.abs() <= GATE_SIGMA * f(model.innovation_std[tap]).max(f64::MIN_POSITIVE) {
-                used[tap] = nu;
-            }
-        }
-        for (row, mode) in modes.iter_mut().enumerate() {
-            *mode = predicted[row] + (0..N_TAPS).map(|tap| f(model.gain[row][tap]) * used[tap]).sum::<f64>();
-            if !mode.is_finite() || mode.abs() > 1e6 {
-                *mode = 0.0;
-            }
+/// The pressure filter's one-step innovations per channel, `cp - (C (A a + B u) + cp_mean)`:
+/// the fit's f64 filter ([`PressureFilterF64`], the core's pressure.rs in f64) with a wider
+/// gate and no isolation, so that every channel's innovation is reported and one bad channel
+/// does not drag the others.
+fn innovations(run: &Run, set: &CoefficientSet, phi_rad: &[f64], cmu: &[Vec<f64>; 2], dt_s: f64) -> Vec<Vec<f64>> {
+    let model = PressureModelF64 {
+        gate_sigma: GATE_SIGMA,
+        isolate_after: u16::MAX,
+        ..PressureModelF64::from_core(&set.pressure)
+    };
+    let (phi_dot, _) = differentiate(phi_rad, &set.rate_filter, dt_s);
+    let mut filter = PressureFilterF64::new(&model);
+    let mut out: Vec<Vec<f64>> = (0..N_TAPS).map(|_| Vec::with_capacity(run.channels.len())).collect();
+    for idx in 0..run.channels.len() {
+        let inputs = [phi_rad[idx], phi_dot[idx], cmu[0][idx], cmu[1][idx], 1.0];
+        let cp: [f64; N_TAPS] = std::array::from_fn(|tap| run.channels.cp[tap][idx]);
+        let step = filter.step(&model, &inputs, &cp);
+        for (tap, channel) in out.iter_mut().enumerate() {
+            channel.push(if cp[tap].is_finite() { cp[tap] - step.predicted_cp[tap] } else { f64::NAN });
         }
     }
     out

@@ -30,23 +30,15 @@ use serde::Serialize;
 use crate::diagnose::{DiagnoseConfig, Signature, diagnose};
 use crate::fit::pipeline::{FitConfig, fit_dataset};
 
-/// Classes of case, in the order cases cycle through them.
-pub const CLASSES: [&str; 14] = [
-    "none",
-    "actuator_delay",
-    "actuator_lag",
-    "inertial_tare",
-    "gravity_tare",
-    "roll_damping",
-    "vortex_lag",
-    "coupling",
-    "pressure_lag",
-    "pressure_fault",
-    "balance_resonance",
-    "bias_drift",
-    "q_fluctuation",
-    "cubic_stiffness",
-];
+/// Classes of case, in the order cases cycle through them: no effect, every effect of the
+/// vocabulary, every effect outside it (the tunnel's lists).
+#[must_use]
+pub fn classes() -> Vec<&'static str> {
+    std::iter::once("none")
+        .chain(firmware_sim::tunnel::effects::VOCABULARY)
+        .chain(firmware_sim::tunnel::effects::OUTSIDE_VOCABULARY)
+        .collect()
+}
 
 /// True for the classes outside the diagnosis vocabulary.
 #[must_use]
@@ -57,7 +49,7 @@ pub fn outside_vocabulary(class: &str) -> bool {
 /// Settings of a campaign.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CampaignConfig {
-    /// Number of cases (they cycle through [`CLASSES`]).
+    /// Number of cases (they cycle through [`classes`]).
     pub cases: usize,
     /// Master seed.
     pub seed: u64,
@@ -128,9 +120,9 @@ pub struct CaseRecord {
 pub fn run_campaign(config: &CampaignConfig, progress: &(dyn Fn() + Sync)) -> Vec<CaseRecord> {
     let models: Models = Mutex::new(HashMap::new());
     let classes: Vec<&str> = if config.classes.is_empty() {
-        CLASSES.to_vec()
+        classes()
     } else {
-        CLASSES.iter().copied().filter(|c| config.classes.iter().any(|k| k == c)).collect()
+        classes().into_iter().filter(|c| config.classes.iter().any(|k| k == c)).collect()
     };
     if classes.is_empty() {
         return Vec::new();

@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 use serde::Serialize;
 use sha2::{Digest, Sha256};
 
-use super::{CLASSES, CaseRecord, outside_vocabulary};
+use super::{CaseRecord, classes, outside_vocabulary};
 
 /// Hex SHA-256 of `bytes`.
 #[must_use]
@@ -89,7 +89,7 @@ pub fn summarise(records: &[CaseRecord]) -> Summary {
         records.iter().filter(|r| r.class != "none" && !outside_vocabulary(&r.class) && ratio_of(r) >= 1.0).collect();
     let outside: Vec<&CaseRecord> = records.iter().filter(|r| outside_vocabulary(&r.class)).collect();
     let mut per_effect = BTreeMap::new();
-    for class in CLASSES.iter().filter(|c| **c != "none" && !outside_vocabulary(c)) {
+    for class in classes().into_iter().filter(|c| *c != "none" && !outside_vocabulary(c)) {
         let cases: Vec<&&CaseRecord> = vocab_ge1.iter().filter(|r| r.class == *class).collect();
         per_effect.insert((*class).to_owned(), share(cases.iter().filter(|r| r.correct).count(), cases.len()));
     }
@@ -100,7 +100,7 @@ pub fn summarise(records: &[CaseRecord]) -> Summary {
     };
     let mut accuracy_by_ratio = BTreeMap::new();
     let mut confusion: BTreeMap<String, BTreeMap<String, usize>> = BTreeMap::new();
-    for class in CLASSES {
+    for class in classes() {
         let cases: Vec<&CaseRecord> = records.iter().filter(|r| r.class == class).collect();
         if cases.is_empty() {
             continue;
