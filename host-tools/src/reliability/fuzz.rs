@@ -134,18 +134,7 @@ impl std::str::FromStr for Target {
 pub fn fuzz(config: &FuzzConfig, on_progress: &(dyn Fn(u64) + Sync)) -> FuzzOutcome {
     let started = Instant::now();
     let corpus = corpus(config.target);
-    let mut outcome = FuzzOutcome {
-        target: config.target,
-        seed: config.seed,
-        execs: 0,
-        accepted: 0,
-        rejected: 0,
-        errors: BTreeMap::new(),
-        findings: Vec::new(),
-        n_findings: 0,
-        slowest_exec_us: 0,
-        elapsed_s: 0.0,
-    };
+    let mut outcome = outcome_template(config);
     if config.target == Target::Blob {
         outcome.merge(every_bit_flip(&corpus[0], config.time_limit));
     }
@@ -156,7 +145,7 @@ pub fn fuzz(config: &FuzzConfig, on_progress: &(dyn Fn(u64) + Sync)) -> FuzzOutc
         .into_par_iter()
         .map(|chunk_idx| {
             let range = chunk_idx * chunk..((chunk_idx + 1) * chunk).min(config.execs);
-            let mut partial = FuzzOutcome { execs: 0, ..outcome_template(config) };
+            let mut partial = outcome_template(config);
             for exec_idx in range {
                 let mut rng = ChaCha8Rng::seed_from_u64(mix_seed(config.seed, exec_idx));
                 let input = mutated(config.target, &corpus, &mut rng);
@@ -174,6 +163,7 @@ pub fn fuzz(config: &FuzzConfig, on_progress: &(dyn Fn(u64) + Sync)) -> FuzzOutc
     outcome
 }
 
+/// An empty outcome for `config`'s target and seed.
 fn outcome_template(config: &FuzzConfig) -> FuzzOutcome {
     FuzzOutcome {
         target: config.target,
