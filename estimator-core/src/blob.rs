@@ -21,7 +21,7 @@ use core::fmt;
 
 use crate::coeffs::{
     CoefficientSet, ControllerParams, EgkParams, FusionParams, MAX_POWER, MAX_TERMS, MAX_VARS, N_ALPHA,
-    N_PRESSURE_INPUTS, N_TAPS, PRESSURE_RANK, PressureModel, RateFilter, SCHEMA_VERSION,
+    N_PRESSURE_INPUTS, N_TAPS, PRESSURE_RANK, PlantParams, PressureModel, RateFilter, SCHEMA_VERSION,
 };
 use crate::sparse::{Monomial, SparseModel, Term};
 
@@ -41,11 +41,11 @@ pub const HEADER_LEN: usize = 20;
 /// Written by hand (const string formatting does not exist); a unit test checks that the
 /// numbers in it are the current values of the constants. Update it with any change of a field
 /// or size: its hash, [`SCHEMA_HASH`], is what makes an old blob fail to load.
-pub const SCHEMA: &str = "rlcs coefficient set; schema_version=1; \
+pub const SCHEMA: &str = "rlcs coefficient set; schema_version=2; \
     N_TAPS=12; PRESSURE_RANK=10; N_PRESSURE_INPUTS=5; N_ALPHA=4; MAX_TERMS=16; MAX_VARS=6; \
-    N_PLANT_VARS=4; N_COUPLING_VARS=6; \
+    N_PLANT_VARS=5; N_COUPLING_VARS=6; \
     CoefficientSet{schema_version:u16,dt_s:f32,rate_filter:RateFilter,alpha_schedule_deg:[f32;N_ALPHA],\
-    n_alpha:u8,egk:[EgkParams;N_ALPHA],pressure:PressureModel,fusion:FusionParams,plant:[SparseModel;2],\
+    n_alpha:u8,egk:[EgkParams;N_ALPHA],pressure:PressureModel,fusion:FusionParams,plant:[PlantParams;2],\
     coupling:SparseModel,controller:ControllerParams}; \
     RateFilter{rate_pole:f32,accel_pole:f32}; \
     EgkParams{tau1_s:f32,tau2_s:f32,breakdown_deg:f32,steepness_per_deg:f32,sideslip_gain:f32,\
@@ -54,6 +54,7 @@ pub const SCHEMA: &str = "rlcs coefficient set; schema_version=1; \
     c:[[f32;PRESSURE_RANK];N_TAPS],cp_mean:[f32;N_TAPS],gain:[[f32;N_TAPS];PRESSURE_RANK],\
     innovation_std:[f32;N_TAPS],gate_sigma:f32,isolate_after:u16,cl_weights:[f32;N_TAPS],cl_offset:f32}; \
     FusionParams{rho:f32,gain:f32}; \
+    PlantParams{slow_pole:f32,cmu_max:f32,model:SparseModel}; \
     SparseModel{terms:[Term;MAX_TERMS],n_terms:u8,gate_threshold:[f32;MAX_VARS]}; \
     Term{coeff:f32,monomial:Monomial}; \
     Monomial{powers:[u8;MAX_VARS],gate_mask:u8}; \
@@ -83,9 +84,9 @@ const F32_PER_PRESSURE: usize = PRESSURE_RANK * PRESSURE_RANK
     + N_TAPS
     + 1;
 /// Every f32 of a [`CoefficientSet`]: `dt_s`, the rate filter, the alpha schedule, the eGK
-/// parameters, the pressure model, the fusion, the two plant models and the coupling, and the
-/// controller.
-const N_F32: usize = 1 + 2 + N_ALPHA + N_ALPHA * F32_PER_EGK + F32_PER_PRESSURE + 2 + 3 * F32_PER_SPARSE + 4;
+/// parameters, the pressure model, the fusion, the two plant models (slow pole, Cmu range
+/// and sparse model) and the coupling, and the controller.
+const N_F32: usize = 1 + 2 + N_ALPHA + N_ALPHA * F32_PER_EGK + F32_PER_PRESSURE + 2 + 2 * 2 + 3 * F32_PER_SPARSE + 4;
 /// Every u8 of a [`CoefficientSet`]: `n_alpha`, `pressure.rank`, the three sparse models and
 /// `controller.inversion_iterations`.
 const N_U8: usize = 1 + 1 + 3 * U8_PER_SPARSE + 1;
@@ -357,6 +358,11 @@ pub fn validate(set: &CoefficientSet) -> Result<(), BlobError> {
     )?;
 
     let [port, starboard] = &set.plant;
+    ensure((0.0..1.0).contains(&port.slow_pole), "plant[0].slow_pole must be in [0, 1)")?;
+    ensure((0.0..1.0).contains(&starboard.slow_pole), "plant[1].slow_pole must be in [0, 1)")?;
+    ensure(port.cmu_max > 0.0, "plant[0].cmu_max must be > 0")?;
+    ensure(starboard.cmu_max > 0.0, "plant[1].cmu_max must be > 0")?;
+    let [port, starboard] = [&port.model, &starboard.model];
     ensure(usize::from(port.n_terms) <= MAX_TERMS, "plant[0].n_terms must be <= MAX_TERMS")?;
     ensure(usize::from(starboard.n_terms) <= MAX_TERMS, "plant[1].n_terms must be <= MAX_TERMS")?;
     ensure(usize::from(set.coupling.n_terms) <= MAX_TERMS, "coupling.n_terms must be <= MAX_TERMS")?;
@@ -474,6 +480,12 @@ fn check_all_finite(set: &CoefficientSet) -> Result<(), BlobError> {
     all_finite(&[*gain], "fusion.gain is not finite")?;
 
     let [port, starboard] = plant;
+    let PlantParams { slow_pole: port_pole, cmu_max: port_cmu_max, model: port } = port;
+    let PlantParams { slow_pole: starboard_pole, cmu_max: starboard_cmu_max, model: starboard } = starboard;
+    all_finite(&[*port_pole], "plant[0].slow_pole is not finite")?;
+    all_finite(&[*starboard_pole], "plant[1].slow_pole is not finite")?;
+    all_finite(&[*port_cmu_max], "plant[0].cmu_max is not finite")?;
+    all_finite(&[*starboard_cmu_max], "plant[1].cmu_max is not finite")?;
     sparse_finite(port, "plant[0].terms.coeff is not finite", "plant[0].gate_threshold is not finite")?;
     sparse_finite(starboard, "plant[1].terms.coeff is not finite", "plant[1].gate_threshold is not finite")?;
     sparse_finite(coupling, "coupling.terms.coeff is not finite", "coupling.gate_threshold is not finite")?;
@@ -604,7 +616,10 @@ mod tests {
                 cl_offset: -seq.next(),
             },
             fusion: FusionParams { rho: seq.next(), gain: seq.next() },
-            plant: [seq.sparse(5), seq.sparse(5)],
+            plant: [
+                PlantParams { slow_pole: 0.9, cmu_max: 0.009, model: seq.sparse(5) },
+                PlantParams { slow_pole: 0.95, cmu_max: 0.012, model: seq.sparse(5) },
+            ],
             coupling: seq.sparse(7),
             controller: ControllerParams {
                 causality_pole: 0.95,
@@ -659,7 +674,7 @@ mod tests {
                 cl_offset: big,
             },
             fusion: FusionParams { rho: big, gain: big },
-            plant: [sparse; 2],
+            plant: [PlantParams { slow_pole: big, cmu_max: big, model: sparse }; 2],
             coupling: sparse,
             controller: ControllerParams {
                 causality_pole: big,
@@ -783,8 +798,10 @@ mod tests {
         w.f32s(&p.cl_weights);
         w.f32s(&[p.cl_offset]);
         w.f32s(&[set.fusion.rho, set.fusion.gain]);
-        w.sparse(&set.plant[0]);
-        w.sparse(&set.plant[1]);
+        w.f32s(&[set.plant[0].slow_pole, set.plant[0].cmu_max]);
+        w.sparse(&set.plant[0].model);
+        w.f32s(&[set.plant[1].slow_pole, set.plant[1].cmu_max]);
+        w.sparse(&set.plant[1].model);
         w.sparse(&set.coupling);
         let c = &set.controller;
         w.f32s(&[c.causality_pole, c.feedback_kp, c.feedback_ki, c.cmu_max]);
@@ -959,7 +976,7 @@ mod tests {
             (|s| s.pressure.gain[9][11] = f32::NAN, "pressure.gain is not finite"),
             (|s| s.pressure.a[0][0] = f32::INFINITY, "pressure.a is not finite"),
             (|s| s.egk[3].bias = f32::NEG_INFINITY, "egk.bias is not finite"),
-            (|s| s.plant[1].terms[15].coeff = f32::NAN, "plant[1].terms.coeff is not finite"),
+            (|s| s.plant[1].model.terms[15].coeff = f32::NAN, "plant[1].terms.coeff is not finite"),
             (|s| s.coupling.gate_threshold[5] = f32::INFINITY, "coupling.gate_threshold is not finite"),
             (|s| s.controller.feedback_ki = f32::NAN, "controller.feedback_ki is not finite"),
             (|s| s.dt_s = 0.0, "dt_s must be > 0"),
@@ -978,7 +995,7 @@ mod tests {
             (|s| s.egk[0].tau2_s = -0.01, "egk.tau2_s must be >= 0"),
             (|s| s.pressure.rank = PRESSURE_RANK as u8 + 1, "pressure.rank must be <= PRESSURE_RANK"),
             (|s| s.pressure.gate_sigma = 0.0, "pressure.gate_sigma must be > 0"),
-            (|s| s.plant[0].n_terms = MAX_TERMS as u8 + 1, "plant[0].n_terms must be <= MAX_TERMS"),
+            (|s| s.plant[0].model.n_terms = MAX_TERMS as u8 + 1, "plant[0].n_terms must be <= MAX_TERMS"),
             (|s| s.coupling.n_terms = u8::MAX, "coupling.n_terms must be <= MAX_TERMS"),
             (|s| s.controller.cmu_max = 0.0, "controller.cmu_max must be > 0"),
             (|s| s.pressure.rank = 4, "pressure modes beyond rank must be zero"),
@@ -999,7 +1016,7 @@ mod tests {
         set.egk[3].tau1_s = 0.0;
         set.egk[0].tau2_s = 0.0;
         set.pressure = PressureModel { rank: 0, ..crate::prior::PRIOR.pressure };
-        set.plant[0].n_terms = MAX_TERMS as u8;
+        set.plant[0].model.n_terms = MAX_TERMS as u8;
         assert_eq!(validate(&set), Ok(()));
         set.n_alpha = 1;
         set.alpha_schedule_deg[1] = -90.0;

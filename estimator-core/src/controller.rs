@@ -94,7 +94,7 @@ pub struct Blocks {
 /// whether the chosen jet saturated.
 fn allocate(set: &CoefficientSet, plants: &[Plant; 2], demand: f32, alpha_rad: f32) -> ([f32; 2], bool) {
     let params = &set.controller;
-    let next = |side: usize, cmu: f32| set.plant[side].eval(&plants[side].variables(cmu, alpha_rad));
+    let next = |side: usize, cmu: f32| set.plant[side].model.eval(&plants[side].variables(cmu, alpha_rad));
     let coasting = [next(0, 0.0), next(1, 0.0)];
     let full = [next(0, params.cmu_max), next(1, params.cmu_max)];
     let wanted = demand - coasting[0] - coasting[1];
@@ -167,7 +167,7 @@ mod tests {
     const FEEDFORWARD: Blocks = Blocks { feedforward: true, feedback: false };
 
     fn next_moment(plants: &[Plant; 2], cmu: [f32; 2]) -> f32 {
-        (0..2).map(|side| PRIOR.plant[side].eval(&plants[side].variables(cmu[side], 0.0))).sum()
+        (0..2).map(|side| PRIOR.plant[side].model.eval(&plants[side].variables(cmu[side], 0.0))).sum()
     }
 
     #[test]

@@ -1,10 +1,9 @@
 //! The plant model of one blowing jet: the SINDy difference equation of the paper's eq. 5,
-//! `C_l,AFC[k+1] = Xi Theta(C_l,AFC[k], Cmu[k], dCmu[k], alpha[k])`, with
-//! `dCmu[k] = Cmu[k] - Cmu[k-1]` (the paper's library: products up to degree 2, without
-//! `C_l,AFC^2`).
+//! `C_l,AFC[k+1] = Xi Theta(C_l,AFC[k], Cmu[k], dCmu[k], alpha[k], C_l,slow[k])`, with
+//! `dCmu[k] = Cmu[k] - Cmu[k-1]` and the slow state
+//! `C_l,slow[k+1] = p C_l,slow[k] + (1 - p) C_l,AFC[k]` ([`PlantParams`]).
 
-use crate::coeffs::{MAX_VARS, plant_var};
-use crate::sparse::SparseModel;
+use crate::coeffs::{MAX_VARS, PlantParams, plant_var};
 
 /// Largest magnitude of the plant's moment before it is treated as diverged (100 times the
 /// authority of a trailing-edge jet).
@@ -14,6 +13,7 @@ const CL_LIMIT: f32 = 1.0;
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Plant {
     cl: f32,
+    slow: f32,
     last_cmu: f32,
 }
 
@@ -21,7 +21,7 @@ impl Plant {
     /// No blowing, no moment.
     #[must_use]
     pub const fn new() -> Self {
-        Self { cl: 0.0, last_cmu: 0.0 }
+        Self { cl: 0.0, slow: 0.0, last_cmu: 0.0 }
     }
 
     /// The moment of this step, `C_l,AFC[k]`.
@@ -44,16 +44,19 @@ impl Plant {
         vars[plant_var::CMU] = cmu;
         vars[plant_var::DCMU] = cmu - self.last_cmu;
         vars[plant_var::ALPHA] = alpha_rad;
+        vars[plant_var::CL_SLOW] = self.slow;
         vars
     }
 
     /// Returns `C_l,AFC[k]` and advances to `k + 1` with this step's Cmu; the second value is
     /// true when the state diverged and was reset.
-    pub fn step(&mut self, model: &SparseModel, cmu: f32, alpha_rad: f32) -> (f32, bool) {
+    pub fn step(&mut self, params: &PlantParams, cmu: f32, alpha_rad: f32) -> (f32, bool) {
         let current = self.cl;
-        let next = model.eval(&self.variables(cmu, alpha_rad));
-        let reset = !crate::bounded(next, CL_LIMIT);
-        self.cl = if reset { 0.0 } else { next };
+        let cmu = cmu.clamp(0.0, params.cmu_max);
+        let next = params.model.eval(&self.variables(cmu, alpha_rad));
+        let slow = params.slow_pole * self.slow + (1.0 - params.slow_pole) * current;
+        let reset = !(crate::bounded(next, CL_LIMIT) && crate::bounded(slow, CL_LIMIT));
+        (self.cl, self.slow) = if reset { (0.0, 0.0) } else { (next, slow) };
         self.last_cmu = cmu;
         (current, reset)
     }
@@ -79,7 +82,7 @@ mod tests {
     #[test]
     fn divergent_model_is_reset_not_propagated() {
         let mut model = PRIOR.plant[0];
-        model.terms[0].coeff = 3.0;
+        model.model.terms[0].coeff = 3.0;
         let mut plant = Plant::new();
         let mut reset_seen = false;
         for _ in 0..100 {

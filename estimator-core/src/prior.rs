@@ -6,8 +6,8 @@
 //! (`host-tools codegen`).
 
 use crate::coeffs::{
-    CoefficientSet, ControllerParams, EgkParams, FusionParams, MAX_VARS, N_ALPHA, N_PRESSURE_INPUTS, N_TAPS,
-    PRESSURE_RANK, PressureModel, RateFilter, SCHEMA_VERSION, coupling_var, plant_var,
+    CoefficientSet, ControllerParams, EgkParams, FusionParams, MAX_VARS, N_ALPHA, N_PLANT_VARS, N_PRESSURE_INPUTS,
+    N_TAPS, PRESSURE_RANK, PlantParams, PressureModel, RateFilter, SCHEMA_VERSION, coupling_var, plant_var,
 };
 use crate::sparse::{Monomial, SparseModel, Term};
 
@@ -35,13 +35,14 @@ const fn egk_prior(alpha_deg: f32) -> EgkParams {
 
 /// A first-order plant `C[k+1] = a C[k] + g Cmu[k]` for one jet: a 76 ms lag (1.5 c/U) to a
 /// roll moment of `sign * 0.01` at full blowing (0.009).
-const fn plant_prior(sign: f32) -> SparseModel {
+/// It has no slow terms (the paper's first-order form).
+const fn plant_prior(sign: f32) -> PlantParams {
     let pole = 0.987_0;
     let mut model = SparseModel::ZERO;
     model.terms[0] = Term { coeff: pole, monomial: single(plant_var::CL_AFC) };
     model.terms[1] = Term { coeff: sign * (1.0 - pole) * 0.01 / 0.009, monomial: single(plant_var::CMU) };
     model.n_terms = 2;
-    model
+    PlantParams { slow_pole: 0.0, cmu_max: 0.009, model }
 }
 
 const fn single(var_idx: usize) -> Monomial {
@@ -116,9 +117,10 @@ pub fn full_size_fixture() -> CoefficientSet {
     }
     set.fusion = FusionParams { rho: 0.999, gain: 0.05 };
     for side in 0..2 {
-        fill_sparse(&mut set.plant[side], 4000 + 100 * side, 4, 0.001, 0);
+        set.plant[side].slow_pole = 0.95;
+        fill_sparse(&mut set.plant[side].model, 4000 + 100 * side, N_PLANT_VARS, 0.001, 0);
         // Keep the plant a stable lag: the self term dominates.
-        set.plant[side].terms[0] = Term { coeff: 0.987, monomial: single(plant_var::CL_AFC) };
+        set.plant[side].model.terms[0] = Term { coeff: 0.987, monomial: single(plant_var::CL_AFC) };
     }
     // Every coupling term is gated on blowing and roll, as the paper's admissibility rules ask.
     let gates = (1 << coupling_var::CMU) | (1 << coupling_var::PHI);

@@ -15,7 +15,7 @@ use crate::sparse::SparseModel;
 pub use generated::DEFAULT;
 
 /// Version of the coefficient-set layout. Bump it whenever a field or a size changes.
-pub const SCHEMA_VERSION: u16 = 1;
+pub const SCHEMA_VERSION: u16 = 2;
 
 /// Number of upper-surface pressure taps.
 pub const N_TAPS: usize = 12;
@@ -39,8 +39,9 @@ pub const MAX_POWER: usize = 3;
 /// Largest number of variables of a sparse model.
 pub const MAX_VARS: usize = 6;
 
-/// Variables of the plant model (paper eq. 5): `[C_l,AFC, Cmu, dCmu, alpha_rad]`.
-pub const N_PLANT_VARS: usize = 4;
+/// Variables of the plant model (paper eq. 5, plus a slow state): `[C_l,AFC, Cmu, dCmu,
+/// alpha_rad, C_l,slow]`.
+pub const N_PLANT_VARS: usize = 5;
 
 /// Variables of the coupling operator (paper eqs. 9-11):
 /// `[C_l,roll, C_l,AFC, alpha_rad, Cmu, dCmu, phi_rad]`.
@@ -56,6 +57,8 @@ pub mod plant_var {
     pub const DCMU: usize = 2;
     /// Angle of attack, rad.
     pub const ALPHA: usize = 3;
+    /// The slow state: `C_l,AFC` through a first-order low-pass ([`super::PlantParams`]).
+    pub const CL_SLOW: usize = 4;
 }
 
 /// Index of each coupling variable.
@@ -93,8 +96,8 @@ pub struct CoefficientSet {
     pub pressure: PressureModel,
     /// Fusion of the eGK and pressure estimates.
     pub fusion: FusionParams,
-    /// Plant models of the port and starboard jets (paper eq. 5).
-    pub plant: [SparseModel; 2],
+    /// Plant models of the port and starboard jets (paper eq. 5, with a slow state).
+    pub plant: [PlantParams; 2],
     /// Coupling operator (paper eqs. 9-11).
     pub coupling: SparseModel,
     /// Feedforward and feedback controller blocks.
@@ -187,6 +190,27 @@ pub struct FusionParams {
     pub rho: f32,
     /// Steady-state Kalman gain of the scalar filter.
     pub gain: f32,
+}
+
+/// The plant model of one jet: the paper's SINDy difference equation (eq. 5),
+/// `C_l,AFC[k+1] = Xi Theta(C_l,AFC[k], Cmu[k], dCmu[k], alpha[k], C_l,slow[k])`, extended by
+/// one slow state `C_l,slow[k+1] = p C_l,slow[k] + (1 - p) C_l,AFC[k]`.
+///
+/// Why the slow state: a first-order difference equation has one time constant, but the jet's
+/// moment rises fast and then relaxes as the wake's counter-circulation builds up (the turn-on
+/// overshoot of circulation control; domain-models.md section 6). A term linear in `C_l,slow`
+/// closes a second loop, which gives the plant two poles and a zero, the form of that response.
+/// A model without slow terms is the paper's eq. 5 exactly, whatever the pole.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PlantParams {
+    /// Pole of the slow state, `exp(-dt / T_slow)`, in `[0, 1)`.
+    pub slow_pole: f32,
+    /// Largest Cmu of the data the model was fitted on (> 0): the plant's input is clamped to
+    /// it, because a polynomial outside the range of its data means nothing (a Cmu reading
+    /// beyond the supply's range is a sensor fault, and the controller never demands more).
+    pub cmu_max: f32,
+    /// The difference equation.
+    pub model: SparseModel,
 }
 
 /// Feedforward and feedback controller blocks (paper Fig. 4, King/Williams architecture).

@@ -114,10 +114,21 @@ pub fn model_card(set: &CoefficientSet, report: &FitReport, dataset: &str) -> St
     );
     for (side, name) in [(0usize, "port"), (1, "starboard")] {
         let _ = writeln!(md, "## Plant, {name} jet (paper eq. 5)\n");
+        let pole = f64::from(set.plant[side].slow_pole);
+        if pole > 0.0 {
+            let _ = writeln!(
+                md,
+                "Slow state `C_l,slow[k+1] = p C_l,slow[k] + (1 - p) C_l,AFC[k]`: p = {pole:.6}, time constant {:.3} s (profiled over {:?} s).\n",
+                -report.dt_s / pole.ln(),
+                super::plant::SLOW_TAU_GRID_S
+            );
+        } else {
+            let _ = writeln!(md, "No slow state selected: the paper's first-order form.\n");
+        }
         match &report.plant[side] {
             Some(fit) => sparse_section(&mut md, "C_l,AFC[k+1]", fit, &format!("plant_{name}_sweep.svg")),
             None => {
-                let _ = writeln!(md, "Mirrored from the other jet ({} terms).\n", set.plant[side].n_terms);
+                let _ = writeln!(md, "Mirrored from the other jet ({} terms).\n", set.plant[side].model.n_terms);
             }
         }
     }

@@ -6,8 +6,13 @@
 //! Admissibility (paper section V): the operator must vanish without blowing and without roll,
 //! so every term is gated by the anti-Dirac indicators of Cmu and of the roll angle; terms
 //! that are polynomials of alpha alone (the constant among them), pure squares of `C_l,roll` or
-//! `C_l,AFC`, and terms without a roll-moment factor are excluded. The models' outputs come
-//! from replaying the core, as the paper used its models' estimates.
+//! `C_l,AFC`, and terms without a roll-moment factor are excluded. The roll angle may also be a
+//! factor of a roll-moment term, which the paper's pool used in the indicator only: blowing
+//! raises the blown half-wing's incidence (domain-models.md section 9.2) and the roll changes it
+//! through the sideslip `~ sin alpha sin phi`, so the jet's moment carries a product of the
+//! blowing and the roll angle that the models' outputs alone do not. Such a term still vanishes
+//! without roll. The
+//! models' outputs come from replaying the core, as the paper used its models' estimates.
 
 use std::ops::Range;
 
@@ -62,7 +67,7 @@ pub fn coupling_library(degree: u8, cmu_threshold: f32, phi_threshold_rad: f32) 
         let p = &term.powers;
         let has_moment = p[roll] > 0 || p[afc] > 0;
         let pure_square = (p[roll] == 2 && term.degree() == 2) || (p[afc] == 2 && term.degree() == 2);
-        p[coupling_var::PHI] > 0 || !has_moment || pure_square
+        !has_moment || pure_square
     });
     library.gate_all("cmu")?;
     library.gate_all("phi")?;

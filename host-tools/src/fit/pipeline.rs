@@ -5,7 +5,7 @@
 
 use std::time::Instant;
 
-use estimator_core::coeffs::{CoefficientSet, N_ALPHA, RateFilter, coupling_var};
+use estimator_core::coeffs::{CoefficientSet, N_ALPHA, PlantParams, RateFilter, coupling_var};
 use estimator_core::egk::params_at;
 use estimator_core::prior::PRIOR;
 use estimator_core::sparse::SparseModel;
@@ -365,7 +365,7 @@ fn fit_plants(
 ) -> Result<[Option<SparseFit>; 2], FitError> {
     let actuation = indices_of(dataset, RunKind::Actuation, "the plant model (eq. 5) is fitted on actuation runs")?;
     let mut reports: [Option<SparseFit>; 2] = [None, None];
-    let mut models: [Option<SparseModel>; 2] = [None, None];
+    let mut models: [Option<PlantParams>; 2] = [None, None];
     for side in 0..2 {
         let runs: Vec<PlantRun<'_>> = actuation
             .iter()

@@ -1,6 +1,9 @@
 //! Fit of the plant model of one jet, the paper's eq. 5: `C_l,AFC[k+1] = Xi Theta(C_l,AFC[k],
 //! Cmu[k], dCmu[k], alpha[k])`, with the paper's library (all products up to degree 2 of the
-//! four variables, without `C_l,AFC^2`, section III.B), on the actuation runs.
+//! four variables, without `C_l,AFC^2`, section III.B), on the actuation runs; extended by a
+//! cube of Cmu and by the slow state `C_l,slow` of [`estimator_core::coeffs::PlantParams`],
+//! whose time constant is profiled on a grid. Sparsity decides: a plant that is first order
+//! and quadratic keeps the paper's terms only.
 //!
 //! At 1 kHz, `C_l[k+1]` is nearly `C_l[k]`, so thresholds would act on the identity rather
 //! than on the dynamics; the regression therefore targets the increment
@@ -12,8 +15,7 @@
 
 use std::ops::Range;
 
-use estimator_core::coeffs::plant_var;
-use estimator_core::sparse::SparseModel;
+use estimator_core::coeffs::{PlantParams, plant_var};
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{DMatrix, DVector, Dyn, Owned};
 use rayon::prelude::*;
@@ -26,7 +28,15 @@ use crate::sindy::{
 };
 
 /// Variable names of the plant library, in the core's order (`estimator_core::coeffs::plant_var`).
-pub const PLANT_VARIABLES: [&str; 4] = ["cl_afc", "cmu", "dcmu", "alpha"];
+pub const PLANT_VARIABLES: [&str; 5] = ["cl_afc", "cmu", "dcmu", "alpha", "cl_slow"];
+
+/// The paper's four plant variables.
+const PAPER_VARIABLES: [&str; 4] = ["cl_afc", "cmu", "dcmu", "alpha"];
+
+/// Time constants of the slow state tried by the fit, s: from a few convective times of a
+/// small wing to the half-second wake relaxation of a large one (domain-models.md section 6
+/// puts the turn-on overshoot's decay at about 1.5 c/U).
+pub const SLOW_TAU_GRID_S: [f64; 8] = [0.015, 0.025, 0.04, 0.06, 0.1, 0.16, 0.25, 0.4];
 
 /// Largest |C_l,AFC| a simulated candidate may reach before it counts as diverged.
 const DIVERGED: f64 = 1.0;
@@ -60,9 +70,16 @@ pub struct PlantRun<'a> {
 }
 
 /// The paper's plant library: products up to degree 2 of `(C_l,AFC, Cmu, dCmu, alpha)`
-/// including the constant, without `C_l,AFC^2`, plus the alpha-interactions of degree 3.
+/// including the constant, without `C_l,AFC^2`, plus the alpha-interactions of degree 3; and
+/// the extension: `Cmu^3` (the jet's moment is sub-linear in Cmu, jet-flap theory's square
+/// root, which a quadratic alone fits poorly over the whole range) and the slow state alone and
+/// times alpha.
 pub fn plant_library() -> Result<Library, FitError> {
-    let mut library = Library::polynomial(&PLANT_VARIABLES, 2, true)?;
+    let paper = Library::polynomial(&PAPER_VARIABLES, 2, true)?;
+    let mut library = Library::new(&PLANT_VARIABLES)?;
+    for term in paper.terms() {
+        library.push(*term)?;
+    }
     let square = library.monomial(&[("cl_afc", 2)], &[])?;
     library.exclude_term(&square);
     // The paper fitted separate models at low and high alpha; with alpha as an input, the
@@ -73,40 +90,128 @@ pub fn plant_library() -> Result<Library, FitError> {
         &[("cmu", 1), ("alpha", 2)],
         &[("cl_afc", 1), ("alpha", 2)],
         &[("cl_afc", 1), ("cmu", 1), ("alpha", 1)],
+        &[("cmu", 3)],
+        &[("cl_slow", 1)],
+        &[("cl_slow", 1), ("alpha", 1)],
     ] {
         library.push(library.monomial(factors, &[])?)?;
     }
     Ok(library)
 }
 
-/// A run's regressors at every sample for jet `side`, with `cl_afc` taken from `cl_afc`.
-fn variables(signals: &RunSignals, side: usize, cl_afc: &[f64]) -> Vec<[f64; 6]> {
+/// A run's regressors at every sample for jet `side`, with `cl_afc` taken from `cl_afc` and
+/// the slow state run from it and Cmu clamped to the fitted range, as the core runs them.
+fn variables(signals: &RunSignals, side: usize, cl_afc: &[f64], shape: Shape) -> Vec<[f64; 6]> {
     let cmu = &signals.cmu[side];
+    let mut slow = 0.0;
     (0..signals.len())
         .map(|k| {
             let mut vars = [0.0; 6];
             vars[plant_var::CL_AFC] = cl_afc[k];
-            vars[plant_var::CMU] = cmu[k];
-            vars[plant_var::DCMU] = if k == 0 { 0.0 } else { cmu[k] - cmu[k - 1] };
+            vars[plant_var::CMU] = cmu[k].clamp(0.0, shape.cmu_max);
+            vars[plant_var::DCMU] =
+                if k == 0 { 0.0 } else { cmu[k].clamp(0.0, shape.cmu_max) - cmu[k - 1].clamp(0.0, shape.cmu_max) };
             vars[plant_var::ALPHA] = signals.alpha_deg[k].to_radians();
+            vars[plant_var::CL_SLOW] = slow;
+            slow = shape.slow_pole * slow + (1.0 - shape.slow_pole) * cl_afc[k];
             vars
         })
         .collect()
 }
 
+/// The plant's structure besides its terms: the slow pole and the Cmu range
+/// ([`PlantParams`]).
+#[derive(Debug, Clone, Copy)]
+struct Shape {
+    slow_pole: f64,
+    cmu_max: f64,
+}
+
+/// The sweep at one slow pole, its selected model scored on the held-out samples.
+struct PoleSweep {
+    shape: Shape,
+    scored: crate::sindy::ScoredSweep,
+    n_train: usize,
+}
+
+impl PoleSweep {
+    fn free_run_rms(&self) -> f64 {
+        self.scored.selected().heldout.free_run_rms.filter(|rms| rms.is_finite()).unwrap_or(f64::INFINITY)
+    }
+}
+
 /// Fits jet `side` (0 = port, 1 = starboard) on `runs`; returns the core's model and the report.
+///
+/// The slow pole is profiled: the sweep and its free-run selection run at every time constant
+/// of [`SLOW_TAU_GRID_S`], the pole whose selected model runs best open loop is kept, and only
+/// that model is refined by output error.
 pub fn fit_plant(
     runs: &[PlantRun<'_>],
     side: usize,
     sample_hz: f64,
     config: &PlantConfig,
-) -> Result<(SparseModel, SparseFit), FitError> {
+) -> Result<(PlantParams, SparseFit), FitError> {
     let library = plant_library()?;
     let filtered: Vec<Vec<f64>> =
         runs.iter().map(|run| zero_phase_lowpass(&run.signals.cl, config.corner_hz, sample_hz)).collect();
+    let cmu_max = runs
+        .iter()
+        .flat_map(|run| run.signals.cmu[side][run.train.clone()].iter().copied())
+        .filter(|cmu| cmu.is_finite())
+        .fold(0.0, f64::max);
+    if cmu_max <= 0.0 {
+        return Err(FitError::NoPlantModel { side });
+    }
+    let sweeps: Vec<Result<PoleSweep, FitError>> = SLOW_TAU_GRID_S
+        .par_iter()
+        .map(|&tau_s| {
+            let shape = Shape { slow_pole: (-1.0 / (tau_s * sample_hz)).exp(), cmu_max };
+            sweep_at(shape, &library, runs, &filtered, side, config)
+        })
+        .collect();
+    let mut best: Option<PoleSweep> = None;
+    for candidate in sweeps {
+        let candidate = candidate?;
+        if best.as_ref().is_none_or(|best| candidate.free_run_rms() < best.free_run_rms()) {
+            best = Some(candidate);
+        }
+    }
+    let PoleSweep { shape, mut scored, n_train } = best.ok_or(FitError::NoPlantModel { side })?;
+    let mut coefficients = scored.selected().point.coefficients.clone();
+    // Output-error refinement of the selected support, kept when it also lowers the held-out
+    // free-run error (the error the core's open-loop plant makes).
+    let refined = refine_output_error(&library, runs, side, shape, &coefficients);
+    let before = score(&library, runs, &filtered, side, shape, &coefficients).free_run_rms;
+    let after = score(&library, runs, &filtered, side, shape, &refined);
+    if after.free_run_rms.zip(before).is_some_and(|(after, before)| after < before) {
+        coefficients = refined;
+        let selected = &mut scored.points[scored.selected];
+        selected.point.coefficients.clone_from(&coefficients);
+        selected.heldout = after;
+    }
+    add_identity(&library, &mut coefficients)?;
+    let model = library.to_sparse_model(&coefficients)?;
+    let uses_slow =
+        model.terms[..usize::from(model.n_terms)].iter().any(|term| term.monomial.powers[plant_var::CL_SLOW] > 0);
+    // Without slow terms the pole changes nothing; zero says so in the tables.
+    let slow_pole = if uses_slow { shape.slow_pole as f32 } else { 0.0 };
+    let report = sparse_fit(&library, &scored, SelectBy::FreeRun, scored.selected, &coefficients, n_train);
+    Ok((PlantParams { slow_pole, cmu_max: cmu_max as f32, model }, report))
+}
+
+/// The threshold sweep of the increment regression at one slow pole, scored open loop on the
+/// held-out samples, with the free-run selection made.
+fn sweep_at(
+    shape: Shape,
+    library: &Library,
+    runs: &[PlantRun<'_>],
+    filtered: &[Vec<f64>],
+    side: usize,
+    config: &PlantConfig,
+) -> Result<PoleSweep, FitError> {
     let (mut samples, mut targets) = (Vec::new(), Vec::new());
-    for (run, smooth) in runs.iter().zip(&filtered) {
-        let vars = variables(run.signals, side, smooth);
+    for (run, smooth) in runs.iter().zip(filtered) {
+        let vars = variables(run.signals, side, smooth, shape);
         for k in run.train.start..run.train.end.saturating_sub(1) {
             samples.push(vars[k]);
             targets.push(smooth[k + 1] - smooth[k]);
@@ -116,34 +221,25 @@ pub fn fit_plant(
     let stls = StlsConfig { threshold: 0.0, alpha: 0.0, max_iter: 20, unbias: true, normalisation: Normalisation::Rms };
     let thresholds = log_thresholds(&problem, Normalisation::Rms, config.n_thresholds, config.min_fraction)?;
     let swept = sweep(&problem, &stls, &thresholds)?;
-    let heldout = |coefficients: &[f64]| score(&library, runs, &filtered, side, coefficients);
+    let heldout = |coefficients: &[f64]| score(library, runs, filtered, side, shape, coefficients);
     let mut scored = swept.select(heldout, &SelectionConfig::default())?;
     scored.selected = select_index(&scored, SelectBy::FreeRun).ok_or(FitError::NoPlantModel { side })?;
-    let mut coefficients = scored.selected().point.coefficients.clone();
-    // Output-error refinement of the selected support, kept when it also lowers the held-out
-    // free-run error (the error the core's open-loop plant makes).
-    let refined = refine_output_error(&library, runs, side, &coefficients);
-    let before = score(&library, runs, &filtered, side, &coefficients).free_run_rms;
-    let after = score(&library, runs, &filtered, side, &refined);
-    if after.free_run_rms.zip(before).is_some_and(|(after, before)| after < before) {
-        coefficients = refined;
-        let selected = &mut scored.points[scored.selected];
-        selected.point.coefficients.clone_from(&coefficients);
-        selected.heldout = after;
-    }
-    add_identity(&library, &mut coefficients)?;
-    let model = library.to_sparse_model(&coefficients)?;
-    let report = sparse_fit(&library, &scored, SelectBy::FreeRun, scored.selected, &coefficients, targets.len());
-    Ok((model, report))
+    Ok(PoleSweep { shape, scored, n_train: targets.len() })
 }
 
 /// Refines the non-zero coefficients of an increment model by Levenberg-Marquardt on the
 /// open-loop simulation error over the training samples (an output-error fit; Ljung, System
 /// Identification, section 4.2): the equation-error fit of the sweep is biased for a model that
 /// runs open loop, and this removes the bias on the chosen support.
-fn refine_output_error(library: &Library, runs: &[PlantRun<'_>], side: usize, coefficients: &[f64]) -> Vec<f64> {
+fn refine_output_error(
+    library: &Library,
+    runs: &[PlantRun<'_>],
+    side: usize,
+    shape: Shape,
+    coefficients: &[f64],
+) -> Vec<f64> {
     let support: Vec<usize> = (0..coefficients.len()).filter(|&idx| coefficients[idx] != 0.0).collect();
-    let problem = OutputError { library, runs, side, support: support.clone(), full: coefficients.to_vec() };
+    let problem = OutputError { library, runs, side, shape, support: support.clone(), full: coefficients.to_vec() };
     let (solved, _) = LevenbergMarquardt::new().with_patience(30).minimize(problem);
     if solved.full.iter().all(|c| c.is_finite()) { solved.full } else { coefficients.to_vec() }
 }
@@ -153,6 +249,7 @@ struct OutputError<'a, 'b> {
     library: &'a Library,
     runs: &'a [PlantRun<'b>],
     side: usize,
+    shape: Shape,
     support: Vec<usize>,
     full: Vec<f64>,
 }
@@ -161,7 +258,7 @@ impl OutputError<'_, '_> {
     fn residuals_of(&self, full: &[f64]) -> Vec<f64> {
         let mut residuals = Vec::new();
         for run in self.runs {
-            let simulated = simulate_increments(self.library, full, run.signals, self.side, run.train.end);
+            let simulated = simulate_increments(self.library, full, run.signals, self.side, self.shape, run.train.end);
             for k in run.train.clone() {
                 if run.signals.cl[k].is_finite() {
                     // A diverged candidate is a large finite error, so the optimiser backs off.
@@ -229,18 +326,19 @@ fn score(
     runs: &[PlantRun<'_>],
     filtered: &[Vec<f64>],
     side: usize,
+    shape: Shape,
     coefficients: &[f64],
 ) -> HeldoutScore {
     let (mut one_step_sq, mut n_one_step) = (0.0, 0usize);
     let mut free_run_errors = Vec::new();
     for (run, smooth) in runs.iter().zip(filtered) {
-        let vars = variables(run.signals, side, smooth);
+        let vars = variables(run.signals, side, smooth, shape);
         for k in run.heldout.start..run.heldout.end.saturating_sub(1) {
             let predicted = library.predict(coefficients, &vars[k]).unwrap_or(f64::NAN);
             one_step_sq += (predicted - (smooth[k + 1] - smooth[k])).powi(2);
             n_one_step += 1;
         }
-        let simulated = simulate_increments(library, coefficients, run.signals, side, run.heldout.end);
+        let simulated = simulate_increments(library, coefficients, run.signals, side, shape, run.heldout.end);
         for k in run.heldout.clone() {
             if run.signals.cl[k].is_finite() {
                 free_run_errors.push(simulated[k] - run.signals.cl[k]);
@@ -263,16 +361,19 @@ fn simulate_increments(
     coefficients: &[f64],
     signals: &RunSignals,
     side: usize,
+    shape: Shape,
     end: usize,
 ) -> Vec<f64> {
-    let mut state = 0.0f64;
+    let (mut state, mut slow) = (0.0f64, 0.0f64);
     let mut out = Vec::with_capacity(end);
     let zeros = vec![0.0; signals.len()];
-    let inputs = variables(signals, side, &zeros);
+    let inputs = variables(signals, side, &zeros, shape);
     for mut vars in inputs.into_iter().take(end) {
         out.push(state);
         vars[plant_var::CL_AFC] = state;
+        vars[plant_var::CL_SLOW] = slow;
         let increment = library.predict(coefficients, &vars).unwrap_or(f64::NAN);
+        slow = shape.slow_pole * slow + (1.0 - shape.slow_pole) * state;
         state += increment;
         if state.is_nan() || state.abs() > DIVERGED {
             state = f64::NAN;
@@ -282,13 +383,15 @@ fn simulate_increments(
 }
 
 /// The starboard model mirrored from the port one, for datasets that blow one side only: the
-/// mirror image of the wing gives `C_stbd[k+1] = -f_port(-C_stbd[k], Cmu, dCmu, alpha)`, so a
-/// term with an even power of `C_l,AFC` changes sign and one with an odd power keeps it.
+/// mirror image of the wing gives `C_stbd[k+1] = -f_port(-C_stbd[k], Cmu, dCmu, alpha,
+/// -C_slow[k])`, so a term with an even total power of `C_l,AFC` and `C_l,slow` changes sign and
+/// one with an odd power keeps it.
 #[must_use]
-pub fn mirrored(port: &SparseModel) -> SparseModel {
+pub fn mirrored(port: &PlantParams) -> PlantParams {
     let mut starboard = *port;
-    for term in starboard.terms.iter_mut() {
-        if term.monomial.powers[plant_var::CL_AFC] % 2 == 0 {
+    for term in starboard.model.terms.iter_mut() {
+        let powers = term.monomial.powers;
+        if (powers[plant_var::CL_AFC] + powers[plant_var::CL_SLOW]) % 2 == 0 {
             term.coeff = -term.coeff;
         }
     }
