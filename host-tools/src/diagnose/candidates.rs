@@ -170,7 +170,7 @@ impl Candidate {
         match self {
             Self::ActuatorDelay | Self::ActuatorLag | Self::InertialTare | Self::RollDamping => 1,
             Self::GravityTare | Self::BalanceResonance | Self::Recalibration | Self::VortexLag => 2,
-            Self::Coupling => 4,
+            Self::Coupling => 6,
             Self::BiasDrift => 2 * n_runs,
         }
     }
@@ -251,16 +251,18 @@ pub fn columns(
         }
         Candidate::Coupling => {
             // First-order interaction: the blowing (differential and total, scaled) times the
-            // disturbance's own variables (its moment and the roll angle).
+            // disturbance's own variables (its moment, the roll angle and the reduced roll rate:
+            // blowing changes the wing's stiffness and its damping alike).
             let cmu_ref = context.cmu_ref.max(f64::MIN_POSITIVE);
             let differential: Vec<f64> = (0..n).map(|idx| (run.cmu[0][idx] - run.cmu[1][idx]) / cmu_ref).collect();
             let total: Vec<f64> = (0..n).map(|idx| (run.cmu[0][idx] + run.cmu[1][idx]) / cmu_ref).collect();
-            vec![
-                (0..n).map(|idx| run.cl_egk[idx] * differential[idx]).collect(),
-                (0..n).map(|idx| run.cl_egk[idx] * total[idx]).collect(),
-                (0..n).map(|idx| run.phi_rad[idx] * differential[idx]).collect(),
-                (0..n).map(|idx| run.phi_rad[idx] * total[idx]).collect(),
-            ]
+            let p_hat: Vec<f64> = run.phi_dot_rad_s.iter().map(|rate| rate * context.half_span_time_s).collect();
+            let mut columns = Vec::with_capacity(6);
+            for variable in [&run.cl_egk, &run.phi_rad, &p_hat] {
+                columns.push((0..n).map(|idx| variable[idx] * differential[idx]).collect());
+                columns.push((0..n).map(|idx| variable[idx] * total[idx]).collect());
+            }
+            columns
         }
         Candidate::BalanceResonance => {
             let (freq_hz, zeta) = (value("freq_hz"), value("zeta"));

@@ -254,10 +254,16 @@ pub fn physical_params(profiled: &Profiled, context: &Context<'_>) -> BTreeMap<S
             out.insert("kinematic_weight".into(), b(1));
         }
         Candidate::Coupling => {
-            for (idx, name) in
-                ["egk_x_differential_cmu", "egk_x_total_cmu", "phi_x_differential_cmu", "phi_x_total_cmu"]
-                    .iter()
-                    .enumerate()
+            for (idx, name) in [
+                "egk_x_differential_cmu",
+                "egk_x_total_cmu",
+                "phi_x_differential_cmu",
+                "phi_x_total_cmu",
+                "p_hat_x_differential_cmu",
+                "p_hat_x_total_cmu",
+            ]
+            .iter()
+            .enumerate()
             {
                 out.insert((*name).into(), b(idx));
             }
