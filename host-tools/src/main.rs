@@ -581,6 +581,19 @@ fn print_evaluation(evaluation: &host_tools::evaluate::Evaluation) {
         );
     }
     println!(
+        "What the pressures know about the eGK's error (roll runs, held-out): alpha, eGK, fused, eGK + best linear use of the pressures"
+    );
+    for row in &evaluation.pressure_information {
+        println!(
+            "  {:>5.1}  {:>10.4e}  {:>10.4e}  {:>10.4e}  ({:+.2} %)",
+            row.alpha_deg,
+            row.egk_rms,
+            row.fused_rms,
+            row.best_linear_rms,
+            100.0 * (row.best_linear_rms / row.egk_rms - 1.0)
+        );
+    }
+    println!(
         "Noise robustness (operator refitted on noisy data): sigma, alpha, E_SINDy/E_lin, corr linear, corr operator"
     );
     for level in &evaluation.noise_robustness {

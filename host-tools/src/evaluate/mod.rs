@@ -8,6 +8,7 @@
 
 mod figures;
 mod metrics;
+mod pressure_information;
 mod report;
 
 use estimator_core::{CoefficientSet, Output};
@@ -25,6 +26,7 @@ use crate::fit::split::Split;
 use crate::replay::replay_run;
 pub use figures::figures;
 use metrics::{correlation, norm_and_count, rms};
+pub use pressure_information::{PressureInformationRow, pressure_information};
 pub use report::evaluation_report;
 
 /// Settings of an evaluation.
@@ -106,6 +108,8 @@ pub struct Evaluation {
     pub noise_rms: Vec<(f64, f64)>,
     /// The noise-robustness sweep.
     pub noise_robustness: Vec<NoiseRow>,
+    /// What the pressures can tell about the eGK's error (the room a fusion has), per alpha.
+    pub pressure_information: Vec<PressureInformationRow>,
     /// What could not be evaluated and why.
     pub notes: Vec<String>,
 }
@@ -146,14 +150,23 @@ pub fn evaluate(
         .filter_map(|&alpha| noise_rms(dataset, &runs_at(dataset, None, alpha), split).map(|rms| (alpha, rms)))
         .collect();
     let blocks = block_rows(dataset, &replayed, split, &noise);
+    let pressure_information = pressure_information(dataset, &replayed, split, &alphas);
     let noise_robustness = if coupling.is_empty() {
         notes.push("no roll+actuation runs: no coupling tables and no noise-robustness test".into());
         Vec::new()
     } else {
         noise_sweep(dataset, set, config)?
     };
-    let evaluation =
-        Evaluation { split: split.describe(), table1, coupling, blocks, noise_rms: noise, noise_robustness, notes };
+    let evaluation = Evaluation {
+        split: split.describe(),
+        table1,
+        coupling,
+        blocks,
+        noise_rms: noise,
+        noise_robustness,
+        pressure_information,
+        notes,
+    };
     Ok((evaluation, replayed))
 }
 
