@@ -569,27 +569,33 @@ struct Pod {
 impl Pod {
     /// Mean, Gram matrix and its eigen-decomposition; the rank rule of step 2.
     fn fit(runs: &[PressureRun<'_>], embedding: &Embedding, energy_fraction: f64) -> Result<Self, PressureFitError> {
+        // Per-run parts in parallel, summed in run order: a parallel reduction's grouping
+        // depends on work stealing, and floating-point sums on their grouping, which would make
+        // the fit differ from run to run.
         let zero = DVector::zeros(embedding.dim());
-        let (sum, n_snapshots) = runs
+        let parts: Vec<(DVector<f64>, usize)> = runs
             .par_iter()
             .map(|run| {
                 let (snapshots, samples) = embedding.centred_snapshots(run, &zero);
                 (snapshots.column_sum(), samples.len())
             })
-            .reduce(|| (zero.clone(), 0), |(sum_a, n_a), (sum_b, n_b)| (sum_a + sum_b, n_a + n_b));
+            .collect();
+        let (sum, n_snapshots) =
+            parts.into_iter().fold((zero.clone(), 0), |(sum_a, n_a), (sum_b, n_b)| (sum_a + sum_b, n_a + n_b));
         let needed = embedding.dim() + 1;
         if n_snapshots < needed {
             return Err(PressureFitError::TooFewSamples { stage: "snapshot POD", found: n_snapshots, needed });
         }
         let mean = sum / n_snapshots as f64;
         let dim = embedding.dim();
-        let gram = runs
+        let grams: Vec<DMatrix<f64>> = runs
             .par_iter()
             .map(|run| {
                 let (centred, _) = embedding.centred_snapshots(run, &mean);
                 &centred * centred.transpose()
             })
-            .reduce(|| DMatrix::zeros(dim, dim), |a, b| a + b);
+            .collect();
+        let gram = grams.into_iter().fold(DMatrix::zeros(dim, dim), |a, b| a + b);
         let svd = SVD::try_new(gram, true, false, f64::EPSILON, DECOMPOSITION_ITERATIONS)
             .ok_or(PressureFitError::Decomposition("SVD of the snapshot Gram matrix"))?;
         let u = svd.u.ok_or(PressureFitError::Decomposition("SVD of the snapshot Gram matrix"))?;
