@@ -52,7 +52,9 @@ impl Plant {
     /// true when the state diverged and was reset.
     pub fn step(&mut self, params: &PlantParams, cmu: f32, alpha_rad: f32) -> (f32, bool) {
         let current = self.cl;
-        let cmu = cmu.clamp(0.0, params.cmu_max);
+        // `max` and `min`, not `clamp`: with any tables (a NaN or negative bound) they cannot
+        // panic.
+        let cmu = cmu.max(0.0).min(params.cmu_max);
         let next = params.model.eval(&self.variables(cmu, alpha_rad));
         let slow = params.slow_pole * self.slow + (1.0 - params.slow_pole) * current;
         let reset = !(crate::bounded(next, CL_LIMIT) && crate::bounded(slow, CL_LIMIT));
