@@ -199,7 +199,10 @@ pub fn rate_filter(dt_s: f64, rate_corner_hz: f64, accel_corner_hz: f64) -> Rate
 }
 
 /// The differentiator corners that let the eGK (prior dynamics, least-squares output map) fit
-/// the training part of the roll runs best, pooled over the angles of attack.
+/// the training part of the roll runs best, pooled over the angles of attack by the sum of the
+/// logarithms of each run's mean square error: every run counts by its relative improvement,
+/// so that the runs with the largest errors (high alpha, buffeting) do not choose the filter
+/// for all the others alone.
 fn choose_rate_filter(dataset: &Dataset, roll: &[usize], split: &Split, dt_s: f64) -> RateFilter {
     let half_span_time_s = (dataset.wing.span_m / (2.0 * dataset.tunnel.u_inf_mps)) as f32;
     let candidates: Vec<RateFilter> = RATE_CORNERS_HZ
@@ -210,16 +213,16 @@ fn choose_rate_filter(dataset: &Dataset, roll: &[usize], split: &Split, dt_s: f6
     let scores: Vec<f64> = candidates
         .par_iter()
         .map(|filter| {
-            let mut sum_sq = 0.0;
+            let mut sum_log_mse = 0.0;
             for &idx in roll {
                 let run = &dataset.runs[idx];
                 let signals = RunSignals::new(run, filter, dt_s);
                 let data = [EgkData { signals: &signals, range: split.training(signals.len()) }];
                 let mut prior = params_at(&PRIOR, run.meta.alpha_deg as f32);
                 prior.half_span_time_s = half_span_time_s;
-                sum_sq += linear_map_rms(run.meta.alpha_deg, dt_s, &prior, &data).powi(2);
+                sum_log_mse += linear_map_rms(run.meta.alpha_deg, dt_s, &prior, &data).powi(2).ln();
             }
-            sum_sq
+            sum_log_mse
         })
         .collect();
     let best =
