@@ -56,6 +56,10 @@ pub const MAX_REMAINDER_SHARE: f64 = 0.1;
 /// estimation scatter lies.
 pub const MIN_REMAINDER_TO_NOISE: f64 = 0.05;
 
+/// How many standard errors a run's gap must exceed the sim's own floor by before it counts
+/// as a real gap (one-sided, about 2.3 % false alarms per run for a Gaussian scatter).
+pub const GAP_SIGNIFICANCE_Z: f64 = 2.0;
+
 /// Canonical correlation above which two candidates cannot be told apart with this data.
 pub const CONFOUNDED_CORRELATION: f64 = 0.9;
 
@@ -294,8 +298,18 @@ pub fn diagnose(
     }
     let gap_by_kind: BTreeMap<String, f64> =
         gap_by_kind.into_iter().map(|(kind, (sum, n))| (kind, if n == 0 { 0.0 } else { sum / n as f64 })).collect();
+    // A run's gap counts beyond the floor by at least an effect of half the noise RMS and
+    // outside the scatter of both mean squares (the floor's taken as equally uncertain
+    // relative to its size).
     let excess_runs: Vec<usize> = (0..runs.len())
-        .filter(|&idx| run_gaps[idx].0 - floor.gap_of(runs[idx].kind.as_str(), runs[idx].alpha_deg) >= min_ratio)
+        .filter(|&idx| {
+            let floor_gap = floor.gap_of(runs[idx].kind.as_str(), runs[idx].alpha_deg);
+            let excess = run_gaps[idx].0 - floor_gap;
+            let standard_error = to_noise(regression::mean_square_standard_error(&base_segments[idx]));
+            let relative_floor = (floor_gap + 1.0) / (run_gaps[idx].0 + 1.0).max(f64::MIN_POSITIVE);
+            let scatter = standard_error * (1.0 + relative_floor * relative_floor).sqrt();
+            excess >= min_ratio && excess >= GAP_SIGNIFICANCE_Z * scatter
+        })
         .collect();
     let own_signature = Signature {
         explained_to_noise: first_round
