@@ -357,7 +357,25 @@ fn blows(signals: &RunSignals, side: usize) -> bool {
     signals.cmu[side].iter().any(|&cmu| cmu > 0.0)
 }
 
+/// Passes over the two jets when both blow in one run (backfitting: each jet's model is fitted
+/// to the balance less the other's modelled moment; Hastie & Tibshirani, Generalized Additive
+/// Models, 1990, section 4.3). The jets' sequences are independent, so two passes settle.
+const BACKFIT_PASSES: usize = 2;
+
+/// The moment a plant model gives for one jet of a run, stepped as the core steps it.
+fn plant_moment(params: &PlantParams, signals: &RunSignals, side: usize) -> Vec<f64> {
+    let mut plant = estimator_core::plant::Plant::new();
+    (0..signals.len())
+        .map(|k| {
+            let alpha_rad = signals.alpha_deg[k].to_radians() as f32;
+            f64::from(plant.step(params, signals.cmu[side][k] as f32, alpha_rad).0)
+        })
+        .collect()
+}
+
 /// Plants of both jets; a jet that never blows in the actuation runs is mirrored from the other.
+/// When both jets blow in the same runs, each is fitted to the balance less the other's
+/// modelled moment, alternately ([`BACKFIT_PASSES`]).
 fn fit_plants(
     dataset: &Dataset,
     signals: &[RunSignals],
@@ -369,22 +387,54 @@ fn fit_plants(
     let actuation = indices_of(dataset, RunKind::Actuation, "the plant model (eq. 5) is fitted on actuation runs")?;
     let mut reports: [Option<SparseFit>; 2] = [None, None];
     let mut models: [Option<PlantParams>; 2] = [None, None];
-    for side in 0..2 {
-        let runs: Vec<PlantRun<'_>> = actuation
-            .iter()
-            .filter(|&&idx| blows(&signals[idx], side))
-            .map(|&idx| PlantRun {
-                signals: &signals[idx],
-                train: config.split.training(signals[idx].len()),
-                heldout: config.split.heldout(signals[idx].len()),
-            })
-            .collect();
-        if runs.is_empty() {
-            continue;
+    let blowing: [Vec<usize>; 2] =
+        [0, 1].map(|side| actuation.iter().copied().filter(|&idx| blows(&signals[idx], side)).collect());
+    let together = blowing[0].iter().any(|idx| blowing[1].contains(idx));
+    // Per side, per run index: that jet's modelled moment (absent until its model exists),
+    // started from a joint linear split of the runs where both blow.
+    let mut modelled: [std::collections::BTreeMap<usize, Vec<f64>>; 2] = Default::default();
+    if together {
+        let shared: Vec<usize> = blowing[0].iter().copied().filter(|idx| blowing[1].contains(idx)).collect();
+        let runs: Vec<(&RunSignals, std::ops::Range<usize>)> =
+            shared.iter().map(|&idx| (&signals[idx], config.split.training(signals[idx].len()))).collect();
+        if let Some(split) = super::plant::initial_split(&runs, sample_hz) {
+            for (&idx, [port, starboard]) in shared.iter().zip(split) {
+                modelled[0].insert(idx, port);
+                modelled[1].insert(idx, starboard);
+            }
         }
-        let (model, report) = fit_plant(&runs, side, sample_hz, &config.plant)?;
-        models[side] = Some(model);
-        reports[side] = Some(report);
+    }
+    for _ in 0..if together { BACKFIT_PASSES } else { 1 } {
+        for side in 0..2 {
+            if blowing[side].is_empty() {
+                continue;
+            }
+            let runs: Vec<PlantRun<'_>> = blowing[side]
+                .iter()
+                .map(|&idx| {
+                    let other = modelled[1 - side].get(&idx);
+                    let target = signals[idx]
+                        .cl
+                        .iter()
+                        .enumerate()
+                        .map(|(k, cl)| cl - other.map_or(0.0, |moment| moment[k]))
+                        .collect();
+                    PlantRun {
+                        signals: &signals[idx],
+                        train: config.split.training(signals[idx].len()),
+                        heldout: config.split.heldout(signals[idx].len()),
+                        target,
+                    }
+                })
+                .collect();
+            let (model, report) = fit_plant(&runs, side, sample_hz, &config.plant)?;
+            if together {
+                modelled[side] =
+                    blowing[side].iter().map(|&idx| (idx, plant_moment(&model, &signals[idx], side))).collect();
+            }
+            models[side] = Some(model);
+            reports[side] = Some(report);
+        }
     }
     match models {
         [Some(port), Some(starboard)] => set.plant = [port, starboard],

@@ -67,6 +67,9 @@ pub struct PlantRun<'a> {
     pub train: Range<usize>,
     /// Held-out samples (scored only).
     pub heldout: Range<usize>,
+    /// The moment this jet's model must reproduce: the balance, less the other jet's modelled
+    /// moment when both jets blow in the run (NaN where the balance is missing).
+    pub target: Vec<f64>,
 }
 
 /// The paper's plant library: products up to degree 2 of `(C_l,AFC, Cmu, dCmu, alpha)`
@@ -153,7 +156,7 @@ pub fn fit_plant(
 ) -> Result<(PlantParams, SparseFit), FitError> {
     let library = plant_library()?;
     let filtered: Vec<Vec<f64>> =
-        runs.iter().map(|run| zero_phase_lowpass(&run.signals.cl, config.corner_hz, sample_hz)).collect();
+        runs.iter().map(|run| zero_phase_lowpass(&run.target, config.corner_hz, sample_hz)).collect();
     let cmu_max = runs
         .iter()
         .flat_map(|run| run.signals.cmu[side][run.train.clone()].iter().copied())
@@ -260,10 +263,10 @@ impl OutputError<'_, '_> {
         for run in self.runs {
             let simulated = simulate_increments(self.library, full, run.signals, self.side, self.shape, run.train.end);
             for k in run.train.clone() {
-                if run.signals.cl[k].is_finite() {
+                if run.target[k].is_finite() {
                     // A diverged candidate is a large finite error, so the optimiser backs off.
                     let value = if simulated[k].is_finite() { simulated[k] } else { DIVERGED };
-                    residuals.push(value - run.signals.cl[k]);
+                    residuals.push(value - run.target[k]);
                 }
             }
         }
@@ -340,8 +343,8 @@ fn score(
         }
         let simulated = simulate_increments(library, coefficients, run.signals, side, shape, run.heldout.end);
         for k in run.heldout.clone() {
-            if run.signals.cl[k].is_finite() {
-                free_run_errors.push(simulated[k] - run.signals.cl[k]);
+            if run.target[k].is_finite() {
+                free_run_errors.push(simulated[k] - run.target[k]);
             }
         }
     }
@@ -396,4 +399,89 @@ pub fn mirrored(port: &PlantParams) -> PlantParams {
         }
     }
     starboard
+}
+
+/// Time constants of the first-order responses of [`initial_split`], s: a fast rise and a slow
+/// settling, the two time scales of a jet's response.
+const SPLIT_TAU_S: [f64; 2] = [0.02, 0.1];
+
+/// A first guess of each jet's moment in runs where both jets blow: the balance regressed
+/// jointly on both jets' Cmu, its square and its cube, each through first-order lags (a
+/// Hammerstein model linear in its parameters), fitted on the training samples and split into
+/// the two jets' parts; `None` when the regression has too few samples.
+///
+/// Why: the equation-error regression of one jet needs that jet's own moment as its state,
+/// and the balance carries the sum of both. Backfitting from a zero guess for the other jet
+/// starts from a state polluted by the other jet's whole moment, and it does not recover.
+#[must_use]
+pub fn initial_split(runs: &[(&RunSignals, Range<usize>)], sample_hz: f64) -> Option<Vec<[Vec<f64>; 2]>> {
+    let scale = runs
+        .iter()
+        .flat_map(|(signals, _)| signals.cmu.iter().flat_map(|side| side.iter().copied()))
+        .filter(|cmu| cmu.is_finite())
+        .fold(0.0, f64::max);
+    if scale <= 0.0 {
+        return None;
+    }
+    let per_side = 3 * SPLIT_TAU_S.len();
+    // Every run's columns: per side, each power through each lag; then the constant.
+    let columns: Vec<Vec<Vec<f64>>> = runs
+        .iter()
+        .map(|(signals, _)| {
+            let mut columns = Vec::with_capacity(2 * per_side + 1);
+            for cmu in &signals.cmu {
+                for power in 1..=3 {
+                    let input: Vec<f64> = cmu.iter().map(|c| (c.max(0.0) / scale).powi(power)).collect();
+                    for tau_s in SPLIT_TAU_S {
+                        let pole = (-1.0 / (tau_s * sample_hz)).exp();
+                        let mut state = 0.0;
+                        columns.push(
+                            input
+                                .iter()
+                                .map(|u| {
+                                    let out = state;
+                                    state = pole * state + (1.0 - pole) * u;
+                                    out
+                                })
+                                .collect(),
+                        );
+                    }
+                }
+            }
+            columns.push(vec![1.0; signals.len()]);
+            columns
+        })
+        .collect();
+    let n_columns = 2 * per_side + 1;
+    let (mut rows, mut targets) = (Vec::new(), Vec::new());
+    for ((signals, train), run_columns) in runs.iter().zip(&columns) {
+        for k in train.clone() {
+            if signals.cl[k].is_finite() {
+                rows.extend(run_columns.iter().map(|column| column[k]));
+                targets.push(signals.cl[k]);
+            }
+        }
+    }
+    if targets.len() < 10 * n_columns {
+        return None;
+    }
+    let design = DMatrix::from_row_slice(targets.len(), n_columns, &rows);
+    let beta = design.svd(true, true).solve(&DVector::from_vec(targets), 1e-12).ok()?;
+    Some(
+        columns
+            .iter()
+            .map(|run_columns| {
+                [0, 1].map(|side| {
+                    let n = run_columns[0].len();
+                    (0..n)
+                        .map(|k| {
+                            (0..per_side)
+                                .map(|col| beta[side * per_side + col] * run_columns[side * per_side + col][k])
+                                .sum()
+                        })
+                        .collect()
+                })
+            })
+            .collect(),
+    )
 }
