@@ -59,9 +59,18 @@ pub const PRIOR: CoefficientSet = CoefficientSet {
     dt_s: 1.0e-3,
     // Poles of 30 Hz and 20 Hz first-order differentiators at 1 kHz: exp(-2 pi f dt).
     rate_filter: RateFilter { rate_pole: 0.828_2, accel_pole: 0.881_9 },
-    alpha_schedule_deg: [0.0, 10.0, 20.0, 20.0],
+    alpha_schedule_deg: [0.0, 10.0, 20.0, 20.0, 20.0, 20.0, 20.0, 20.0],
     n_alpha: 3,
-    egk: [egk_prior(0.0), egk_prior(10.0), egk_prior(20.0), egk_prior(20.0)],
+    egk: [
+        egk_prior(0.0),
+        egk_prior(10.0),
+        egk_prior(20.0),
+        egk_prior(20.0),
+        egk_prior(20.0),
+        egk_prior(20.0),
+        egk_prior(20.0),
+        egk_prior(20.0),
+    ],
     pressure: PressureModel {
         rank: 0,
         a: [[0.0; PRESSURE_RANK]; PRESSURE_RANK],

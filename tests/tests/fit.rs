@@ -99,3 +99,20 @@ fn both_jets_blowing_together_are_told_apart() {
     let (plant, noise) = (row.plant_rms.expect("plant scored"), row.noise_rms.expect("noise estimated"));
     assert!(plant < 1.5 * noise, "plant {plant:.3e} against noise {noise:.3e}");
 }
+
+/// More angles of attack than the paper's three: every one gets its own eGK breakpoint (the
+/// schedule holds up to `N_ALPHA` of them).
+#[test]
+fn five_angles_of_attack_get_five_breakpoints() {
+    let mut scenario = Scenario {
+        duration_s: 12.0,
+        alphas_deg: vec![0.0, 5.0, 10.0, 15.0, 20.0],
+        kinds: vec![KindName(RunKind::Roll), KindName(RunKind::Actuation)],
+        ..Scenario::default()
+    };
+    scenario.excitation.blowing.delay_s = 1.0;
+    let dataset = scenario.simulate(&|| {}).expect("simulates");
+    let outcome = fit_dataset(&dataset, &FitConfig::default(), &|_| {}).expect("fits");
+    assert_eq!(outcome.set.n_alpha, 5);
+    assert_eq!(&outcome.set.alpha_schedule_deg[..5], &[0.0, 5.0, 10.0, 15.0, 20.0]);
+}

@@ -27,7 +27,7 @@ pub const PRESSURE_RANK: usize = 10;
 pub const N_PRESSURE_INPUTS: usize = 5;
 
 /// Largest number of angle-of-attack breakpoints of the eGK schedule.
-pub const N_ALPHA: usize = 4;
+pub const N_ALPHA: usize = 8;
 
 /// Largest number of terms of a sparse model.
 pub const MAX_TERMS: usize = 16;
