@@ -7,6 +7,7 @@
 //! synthetic tunnel's code: the plant is re-run by estimator-core on a delayed or lagged Cmu, the
 //! vortex lag filters the eGK moment, the structural mode filters the sim's load.
 
+pub use crate::fit::signals::first_order_lag;
 use estimator_core::CoefficientSet;
 use serde::Serialize;
 
@@ -304,22 +305,6 @@ pub fn fractional_delay(values: &[f64], delay_samples: f64) -> Vec<f64> {
         .map(|idx| {
             let base = idx as isize - whole as isize;
             (1.0 - frac) * at(base) + frac * at(base - 1)
-        })
-        .collect()
-}
-
-/// First-order lag `tau y' + y = u`, discretised exactly for an input held over each step,
-/// started at the first input (steady state).
-#[must_use]
-pub fn first_order_lag(values: &[f64], tau_s: f64, dt_s: f64) -> Vec<f64> {
-    let pole = (-dt_s / tau_s.max(1e-12)).exp();
-    let mut state = values.first().copied().unwrap_or(0.0);
-    values
-        .iter()
-        .map(|&u| {
-            let out = state;
-            state = pole * state + (1.0 - pole) * u;
-            out
         })
         .collect()
 }

@@ -16,6 +16,7 @@ use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
 use super::{Replayed, runs_at};
+use crate::fit::signals::hold_missing;
 use crate::fit::split::Split;
 
 /// Time constants of the low-passes applied to every tap, s: the fusion's correlation times
@@ -57,7 +58,7 @@ fn row_at(dataset: &Dataset, replayed: &Replayed, split: &Split, alpha_deg: f64)
         let n = run.channels.cl.len().min(outputs.len());
         let mut columns: Vec<Vec<f64>> = Vec::new();
         for tap in &run.channels.cp {
-            let held = hold_missing(&tap[..n]);
+            let held = hold_missing(&tap[..n], 0.0);
             for tau_s in LOWPASS_TAU_S {
                 columns.push(lowpass(&held, tau_s, sample_hz));
             }
@@ -123,20 +124,6 @@ impl Samples {
     }
 }
 
-/// The signal with every missing sample replaced by the last finite one (0 before the first).
-fn hold_missing(values: &[f64]) -> Vec<f64> {
-    let mut last = 0.0;
-    values
-        .iter()
-        .map(|&value| {
-            if value.is_finite() {
-                last = value;
-            }
-            last
-        })
-        .collect()
-}
-
 /// Causal first-order low-pass `y[k] = p y[k-1] + (1 - p) u[k]`, `p = exp(-1 / (tau f_s))`,
 /// started at the first value.
 fn lowpass(values: &[f64], tau_s: f64, sample_hz: f64) -> Vec<f64> {
@@ -164,6 +151,6 @@ mod tests {
         let step = vec![1.0; 2000];
         let filtered = lowpass(&step, 0.01, 1000.0);
         assert!((filtered[1999] - 1.0).abs() < 1e-12);
-        assert_eq!(hold_missing(&[f64::NAN, 2.0, f64::NAN, 3.0]), vec![0.0, 2.0, 2.0, 3.0]);
+        assert_eq!(hold_missing(&[f64::NAN, 2.0, f64::NAN, 3.0], 0.0), vec![0.0, 2.0, 2.0, 3.0]);
     }
 }

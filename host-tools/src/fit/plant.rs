@@ -21,7 +21,7 @@ use nalgebra::{DMatrix, DVector, Dyn, Owned};
 use rayon::prelude::*;
 
 use super::FitError;
-use super::signals::{RunSignals, zero_phase_lowpass};
+use super::signals::{RunSignals, first_order_lag, zero_phase_lowpass};
 use super::sparse_fit::{SelectBy, SparseFit, effective_samples, lag_one_autocorrelation, select_index, sparse_fit};
 use crate::sindy::{
     HeldoutScore, Library, Normalisation, QrProblem, SelectionConfig, StlsConfig, log_thresholds, sweep,
@@ -433,18 +433,7 @@ pub fn initial_split(runs: &[(&RunSignals, Range<usize>)], sample_hz: f64) -> Op
                 for power in 1..=3 {
                     let input: Vec<f64> = cmu.iter().map(|c| (c.max(0.0) / scale).powi(power)).collect();
                     for tau_s in SPLIT_TAU_S {
-                        let pole = (-1.0 / (tau_s * sample_hz)).exp();
-                        let mut state = 0.0;
-                        columns.push(
-                            input
-                                .iter()
-                                .map(|u| {
-                                    let out = state;
-                                    state = pole * state + (1.0 - pole) * u;
-                                    out
-                                })
-                                .collect(),
-                        );
+                        columns.push(first_order_lag(&input, tau_s, 1.0 / sample_hz));
                     }
                 }
             }

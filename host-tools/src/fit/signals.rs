@@ -69,6 +69,22 @@ pub fn hold_missing(values: &[f64], initial: f64) -> Vec<f64> {
         .collect()
 }
 
+/// First-order lag `tau y' + y = u`, discretised exactly for an input held over each step,
+/// started at the first input (steady state).
+#[must_use]
+pub fn first_order_lag(values: &[f64], tau_s: f64, dt_s: f64) -> Vec<f64> {
+    let pole = (-dt_s / tau_s.max(1e-12)).exp();
+    let mut state = values.first().copied().unwrap_or(0.0);
+    values
+        .iter()
+        .map(|&u| {
+            let out = state;
+            state = pole * state + (1.0 - pole) * u;
+            out
+        })
+        .collect()
+}
+
 /// The core's cascaded filtered differentiators in f64: `y[k] = p y[k-1] + (1 - p) (u[k] -
 /// u[k-1]) / dt`, first for the rate, then for the acceleration (estimator_core::rate).
 #[must_use]
