@@ -20,7 +20,7 @@
 use core::fmt;
 
 use crate::coeffs::{
-    CoefficientSet, ControllerParams, EgkParams, FusionParams, MAX_POWER, MAX_TERMS, MAX_VARS, N_ALPHA,
+    CoefficientSet, ControllerParams, EgkParams, FusionParams, MAX_DEGREE, MAX_TERMS, MAX_VARS, N_ALPHA,
     N_PRESSURE_INPUTS, N_TAPS, PRESSURE_RANK, PlantParams, PressureModel, RateFilter, SCHEMA_VERSION,
 };
 use crate::sparse::{Monomial, SparseModel, Term};
@@ -41,8 +41,8 @@ pub const HEADER_LEN: usize = 20;
 /// Written by hand (const string formatting does not exist); a unit test checks that the
 /// numbers in it are the current values of the constants. Update it with any change of a field
 /// or size: its hash, [`SCHEMA_HASH`], is what makes an old blob fail to load.
-pub const SCHEMA: &str = "rlcs coefficient set; schema_version=2; \
-    N_TAPS=12; PRESSURE_RANK=10; N_PRESSURE_INPUTS=5; N_ALPHA=8; MAX_TERMS=16; MAX_VARS=6; \
+pub const SCHEMA: &str = "rlcs coefficient set; schema_version=3; \
+    N_TAPS=12; PRESSURE_RANK=10; N_PRESSURE_INPUTS=5; N_ALPHA=8; MAX_TERMS=16; MAX_VARS=6; MAX_DEGREE=3; \
     N_PLANT_VARS=5; N_COUPLING_VARS=6; \
     CoefficientSet{schema_version:u16,dt_s:f32,rate_filter:RateFilter,alpha_schedule_deg:[f32;N_ALPHA],\
     n_alpha:u8,egk:[EgkParams;N_ALPHA],pressure:PressureModel,fusion:FusionParams,plant:[PlantParams;2],\
@@ -57,7 +57,7 @@ pub const SCHEMA: &str = "rlcs coefficient set; schema_version=2; \
     PlantParams{slow_pole:f32,cmu_max:f32,model:SparseModel}; \
     SparseModel{terms:[Term;MAX_TERMS],n_terms:u8,gate_threshold:[f32;MAX_VARS]}; \
     Term{coeff:f32,monomial:Monomial}; \
-    Monomial{powers:[u8;MAX_VARS],gate_mask:u8}; \
+    Monomial{factors:[u8;MAX_DEGREE],gate_mask:u8}; \
     ControllerParams{causality_pole:f32,feedback_kp:f32,feedback_ki:f32,cmu_max:f32,inversion_iterations:u8}";
 
 /// FNV-1a (32-bit) hash of [`SCHEMA`], computed at compile time.
@@ -70,8 +70,8 @@ const PAYLOAD_CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
 const F32_PER_EGK: usize = 11;
 /// f32 fields of one [`SparseModel`]: the term coefficients and the gate thresholds.
 const F32_PER_SPARSE: usize = MAX_TERMS + MAX_VARS;
-/// u8 fields of one [`SparseModel`]: each term's powers and gate mask, and `n_terms`.
-const U8_PER_SPARSE: usize = MAX_TERMS * (MAX_VARS + 1) + 1;
+/// u8 fields of one [`SparseModel`]: each term's factors and gate mask, and `n_terms`.
+const U8_PER_SPARSE: usize = MAX_TERMS * (MAX_DEGREE + 1) + 1;
 /// f32 fields of the [`PressureModel`]: `a`, `b`, `c`, `cp_mean`, `gain`, `innovation_std`,
 /// `gate_sigma`, `cl_weights`, `cl_offset`.
 const F32_PER_PRESSURE: usize = PRESSURE_RANK * PRESSURE_RANK
@@ -366,9 +366,9 @@ pub fn validate(set: &CoefficientSet) -> Result<(), BlobError> {
     ensure(usize::from(port.n_terms) <= MAX_TERMS, "plant[0].n_terms must be <= MAX_TERMS")?;
     ensure(usize::from(starboard.n_terms) <= MAX_TERMS, "plant[1].n_terms must be <= MAX_TERMS")?;
     ensure(usize::from(set.coupling.n_terms) <= MAX_TERMS, "coupling.n_terms must be <= MAX_TERMS")?;
-    ensure(powers_in_table(port), "plant[0] powers must be <= MAX_POWER")?;
-    ensure(powers_in_table(starboard), "plant[1] powers must be <= MAX_POWER")?;
-    ensure(powers_in_table(&set.coupling), "coupling powers must be <= MAX_POWER")?;
+    ensure(factors_in_table(port), "plant[0] factors must be variables or ONE_FACTOR, ascending")?;
+    ensure(factors_in_table(starboard), "plant[1] factors must be variables or ONE_FACTOR, ascending")?;
+    ensure(factors_in_table(&set.coupling), "coupling factors must be variables or ONE_FACTOR, ascending")?;
 
     ensure(set.controller.cmu_max > 0.0, "controller.cmu_max must be > 0")
 }
@@ -385,10 +385,11 @@ fn modes_beyond_rank_are_zero(model: &PressureModel) -> bool {
         && model.gain.iter().skip(rank).all(|row| row.iter().all(|&value| value == 0.0))
 }
 
-/// Every power of every term (used or not) is at most [`MAX_POWER`], the largest the
-/// estimator's power table holds.
-fn powers_in_table(model: &SparseModel) -> bool {
-    model.terms.iter().all(|term| term.monomial.powers.iter().all(|&power| usize::from(power) <= MAX_POWER))
+/// Every factor of every term (used or not) is a variable or the padding
+/// [`crate::sparse::ONE_FACTOR`], in the canonical ascending order: the estimator's factor
+/// table has no other entries, and equal monomials must compare equal.
+fn factors_in_table(model: &SparseModel) -> bool {
+    model.terms.iter().all(|term| term.monomial.is_canonical(MAX_VARS))
 }
 
 /// `Ok` when `ok`, else [`BlobError::Invalid`] with `what`.
@@ -502,7 +503,7 @@ fn sparse_finite(model: &SparseModel, coeff_what: &'static str, threshold_what: 
     let SparseModel { terms, n_terms: _, gate_threshold } = model;
     for term in terms {
         let Term { coeff, monomial } = term;
-        let Monomial { powers: _, gate_mask: _ } = monomial;
+        let Monomial { factors: _, gate_mask: _ } = monomial;
         all_finite(&[*coeff], coeff_what)?;
     }
     all_finite(gate_threshold, threshold_what)
@@ -544,6 +545,7 @@ mod tests {
 
     use super::*;
     use crate::coeffs::{N_COUPLING_VARS, N_PLANT_VARS};
+    use crate::sparse::ONE_FACTOR;
 
     /// Distinct, non-zero, exactly representable f32 values in ascending order.
     struct Seq {
@@ -568,7 +570,7 @@ mod tests {
             let terms = array::from_fn(|term_idx| Term {
                 coeff: if term_idx % 2 == 0 { self.next() } else { -self.next() },
                 monomial: Monomial {
-                    powers: array::from_fn(|var_idx| ((term_idx + var_idx) % 4) as u8),
+                    factors: [(term_idx % 3) as u8, (term_idx % 3 + term_idx % 4) as u8, ONE_FACTOR],
                     gate_mask: (term_idx % 64) as u8,
                 },
             });
@@ -635,7 +637,7 @@ mod tests {
     fn large_set() -> CoefficientSet {
         let big = f32::MAX;
         let sparse = SparseModel {
-            terms: [Term { coeff: big, monomial: Monomial { powers: [u8::MAX; MAX_VARS], gate_mask: u8::MAX } };
+            terms: [Term { coeff: big, monomial: Monomial { factors: [u8::MAX; MAX_DEGREE], gate_mask: u8::MAX } };
                 MAX_TERMS],
             n_terms: u8::MAX,
             gate_threshold: [big; MAX_VARS],
@@ -757,7 +759,7 @@ mod tests {
             fn sparse(&mut self, model: &SparseModel) {
                 for term in &model.terms {
                     self.f32s(&[term.coeff]);
-                    self.0.extend_from_slice(&term.monomial.powers);
+                    self.0.extend_from_slice(&term.monomial.factors);
                     self.u8(term.monomial.gate_mask);
                 }
                 self.u8(model.n_terms);
@@ -971,7 +973,7 @@ mod tests {
     #[test]
     fn blob_validate_rejects_bad_values() {
         type Corruption = (fn(&mut CoefficientSet), &'static str);
-        let cases: [Corruption; 22] = [
+        let cases: [Corruption; 23] = [
             (|s| s.schema_version = SCHEMA_VERSION + 1, "schema_version differs from this build's SCHEMA_VERSION"),
             (|s| s.pressure.gain[9][11] = f32::NAN, "pressure.gain is not finite"),
             (|s| s.pressure.a[0][0] = f32::INFINITY, "pressure.a is not finite"),
@@ -999,7 +1001,14 @@ mod tests {
             (|s| s.coupling.n_terms = u8::MAX, "coupling.n_terms must be <= MAX_TERMS"),
             (|s| s.controller.cmu_max = 0.0, "controller.cmu_max must be > 0"),
             (|s| s.pressure.rank = 4, "pressure modes beyond rank must be zero"),
-            (|s| s.coupling.terms[15].monomial.powers[2] = 4, "coupling powers must be <= MAX_POWER"),
+            (
+                |s| s.coupling.terms[15].monomial.factors[2] = ONE_FACTOR + 1,
+                "coupling factors must be variables or ONE_FACTOR, ascending",
+            ),
+            (
+                |s| s.plant[1].model.terms[0].monomial.factors = [2, 1, ONE_FACTOR],
+                "plant[1] factors must be variables or ONE_FACTOR, ascending",
+            ),
         ];
         for (corrupt, what) in cases {
             let mut set = valid_set();

@@ -9,7 +9,7 @@ use crate::coeffs::{
     CoefficientSet, ControllerParams, EgkParams, FusionParams, MAX_VARS, N_ALPHA, N_PLANT_VARS, N_PRESSURE_INPUTS,
     N_TAPS, PRESSURE_RANK, PlantParams, PressureModel, RateFilter, SCHEMA_VERSION, coupling_var, plant_var,
 };
-use crate::sparse::{Monomial, SparseModel, Term};
+use crate::sparse::{Monomial, ONE_FACTOR, SparseModel, Term};
 
 /// `b / (2 U)` of the paper's wing (b = 0.287 m) at 6.5 m/s, s.
 const HALF_SPAN_TIME_S: f32 = 0.287 / (2.0 * 6.5);
@@ -46,9 +46,7 @@ const fn plant_prior(sign: f32) -> PlantParams {
 }
 
 const fn single(var_idx: usize) -> Monomial {
-    let mut powers = [0u8; MAX_VARS];
-    powers[var_idx] = 1;
-    Monomial { powers, gate_mask: 0 }
+    Monomial { factors: [var_idx as u8, ONE_FACTOR, ONE_FACTOR], gate_mask: 0 }
 }
 
 /// The physical prior at the paper's 1 kHz. The pressure path has no modes yet (its estimate is
@@ -144,7 +142,8 @@ fn fill_sparse(model: &mut SparseModel, seed: usize, n_vars: usize, scale: f32, 
         let mut powers = [0u8; MAX_VARS];
         powers[term_idx % n_vars] += 1;
         powers[(term_idx / n_vars + 1) % n_vars] += (term_idx % 3) as u8;
-        *term = Term { coeff: scale * fixture_value(seed + term_idx), monomial: Monomial { powers, gate_mask } };
+        let monomial = Monomial::from_powers(&powers, gate_mask).unwrap_or(Monomial::ONE);
+        *term = Term { coeff: scale * fixture_value(seed + term_idx), monomial };
     }
     model.n_terms = model.terms.len() as u8;
     model.gate_threshold = [1e-4; MAX_VARS];

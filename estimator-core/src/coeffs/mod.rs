@@ -15,7 +15,7 @@ use crate::sparse::SparseModel;
 pub use generated::DEFAULT;
 
 /// Version of the coefficient-set layout. Bump it whenever a field or a size changes.
-pub const SCHEMA_VERSION: u16 = 2;
+pub const SCHEMA_VERSION: u16 = 3;
 
 /// Number of upper-surface pressure taps.
 pub const N_TAPS: usize = 12;
@@ -32,9 +32,9 @@ pub const N_ALPHA: usize = 8;
 /// Largest number of terms of a sparse model.
 pub const MAX_TERMS: usize = 16;
 
-/// Largest power of one variable in a sparse term (the estimator tabulates powers up to it;
-/// paper eq. 12 uses cubes).
-pub const MAX_POWER: usize = 3;
+/// Largest total degree of a sparse term (paper eq. 12 uses cubes; the plant's alpha
+/// interactions of the degree-2 actuation terms are of degree 3).
+pub const MAX_DEGREE: usize = 3;
 
 /// Largest number of variables of a sparse model.
 pub const MAX_VARS: usize = 6;

@@ -64,7 +64,7 @@ pub fn coupling_library(degree: u8, cmu_threshold: f32, phi_threshold_rad: f32) 
     let mut library = Library::polynomial(&COUPLING_VARIABLES, degree, false)?;
     let (roll, afc) = (coupling_var::CL_ROLL, coupling_var::CL_AFC);
     library.exclude_where(|term| {
-        let p = &term.powers;
+        let p = &term.powers();
         let has_moment = p[roll] > 0 || p[afc] > 0;
         let pure_square = (p[roll] == 2 && term.degree() == 2) || (p[afc] == 2 && term.degree() == 2);
         !has_moment || pure_square

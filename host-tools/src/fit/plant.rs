@@ -195,7 +195,7 @@ pub fn fit_plant(
     add_identity(&library, &mut coefficients)?;
     let model = library.to_sparse_model(&coefficients)?;
     let uses_slow =
-        model.terms[..usize::from(model.n_terms)].iter().any(|term| term.monomial.powers[plant_var::CL_SLOW] > 0);
+        model.terms[..usize::from(model.n_terms)].iter().any(|term| term.monomial.powers()[plant_var::CL_SLOW] > 0);
     // Without slow terms the pole changes nothing; zero says so in the tables.
     let slow_pole = if uses_slow { shape.slow_pole as f32 } else { 0.0 };
     let report = sparse_fit(&library, &scored, SelectBy::FreeRun, scored.selected, &coefficients, n_train);
@@ -393,7 +393,7 @@ fn simulate_increments(
 pub fn mirrored(port: &PlantParams) -> PlantParams {
     let mut starboard = *port;
     for term in starboard.model.terms.iter_mut() {
-        let powers = term.monomial.powers;
+        let powers = term.monomial.powers();
         if (powers[plant_var::CL_AFC] + powers[plant_var::CL_SLOW]) % 2 == 0 {
             term.coeff = -term.coeff;
         }

@@ -1,6 +1,6 @@
 //! The errors of the SINDy engine.
 
-use estimator_core::coeffs::{MAX_POWER, MAX_TERMS, MAX_VARS};
+use estimator_core::coeffs::{MAX_DEGREE, MAX_TERMS, MAX_VARS};
 use thiserror::Error;
 
 /// Everything that can go wrong while building a library, fitting or selecting a model.
@@ -42,8 +42,14 @@ pub enum SindyError {
         /// The number of variables given.
         found: usize,
     },
-    /// A monomial uses a variable the library does not have, or a power above the core's limit.
-    #[error("invalid term {term}: {reason} (powers at most {MAX_POWER})")]
+    /// A polynomial library of a degree the core cannot evaluate.
+    #[error("a library of degree {found}: the core evaluates terms of degree at most {MAX_DEGREE}")]
+    DegreeTooHigh {
+        /// The degree asked for.
+        found: u8,
+    },
+    /// A monomial uses a variable the library does not have, or a degree above the core's limit.
+    #[error("invalid term {term}: {reason} (degree at most {MAX_DEGREE})")]
     InvalidTerm {
         /// The term, written with the variable indices (`x0^2*x3`).
         term: String,

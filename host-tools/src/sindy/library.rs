@@ -4,7 +4,7 @@
 //! host's reference evaluation of the core's sparse terms, so the model the host fits is the
 //! model the core evaluates (up to the f32 rounding of the coefficients).
 
-use estimator_core::coeffs::{MAX_POWER, MAX_TERMS, MAX_VARS};
+use estimator_core::coeffs::{MAX_DEGREE, MAX_TERMS, MAX_VARS};
 use estimator_core::sparse::{Monomial, SparseModel, Term};
 use nalgebra::DMatrix;
 
@@ -42,9 +42,12 @@ impl Library {
 
     /// All monomials of total degree at most `max_degree`, in PySINDy's `PolynomialLibrary`
     /// order: by degree, then lexicographically by variable index (`1, x0, x1, x0^2, x0*x1,
-    /// x1^2, ...`, i.e. `itertools.combinations_with_replacement`). Monomials with a power above
-    /// [`MAX_POWER`] for one variable are left out, since the core cannot evaluate them.
+    /// x1^2, ...`, i.e. `itertools.combinations_with_replacement`). The degree is at most
+    /// [`MAX_DEGREE`], the largest the core evaluates.
     pub fn polynomial(names: &[&str], max_degree: u8, include_constant: bool) -> Result<Self, SindyError> {
+        if usize::from(max_degree) > MAX_DEGREE {
+            return Err(SindyError::DegreeTooHigh { found: max_degree });
+        }
         let mut library = Self::new(names)?;
         let first_degree = if include_constant { 0 } else { 1 };
         for degree in first_degree..=max_degree {
@@ -63,7 +66,7 @@ impl Library {
         Ok(library)
     }
 
-    /// Appends a term; rejects unknown variables, powers above [`MAX_POWER`] and duplicates.
+    /// Appends a term; rejects unknown variables, non-canonical factors and duplicates.
     pub fn push(&mut self, term: Monomial) -> Result<(), SindyError> {
         self.validate(&term)?;
         if self.terms.contains(&term) {
@@ -75,14 +78,19 @@ impl Library {
 
     /// The monomial `prod x_name^power * prod [gate]`, from variable names.
     pub fn monomial(&self, factors: &[(&str, u8)], gates: &[&str]) -> Result<Monomial, SindyError> {
-        let mut term = Monomial::ONE;
+        let mut powers = [0u8; MAX_VARS];
+        let mut gate_mask = 0u8;
         for &(name, power) in factors {
             let var = self.var_index(name)?;
-            term.powers[var] = term.powers[var].saturating_add(power);
+            powers[var] = powers[var].saturating_add(power);
         }
         for &name in gates {
-            term.gate_mask |= 1 << self.var_index(name)?;
+            gate_mask |= 1 << self.var_index(name)?;
         }
+        let term = Monomial::from_powers(&powers, gate_mask).ok_or_else(|| SindyError::InvalidTerm {
+            term: factors.iter().map(|(name, power)| format!("{name}^{power}")).collect::<Vec<_>>().join("*"),
+            reason: "degree above the core's limit",
+        })?;
         self.validate(&term)?;
         Ok(term)
     }
@@ -181,7 +189,7 @@ impl Library {
     pub fn monomial_name(&self, term: &Monomial) -> String {
         let var_name = |var: usize| self.names.get(var).cloned().unwrap_or_else(|| format!("x{var}"));
         let mut factors: Vec<String> = Vec::new();
-        for (var, &power) in term.powers.iter().enumerate() {
+        for (var, &power) in term.powers().iter().enumerate() {
             match power {
                 0 => {}
                 1 => factors.push(var_name(var)),
@@ -277,14 +285,11 @@ impl Library {
         Ok(())
     }
 
-    /// Rejects variables beyond the library's and powers above [`MAX_POWER`].
+    /// Rejects variables beyond the library's and factors out of the canonical order.
     fn validate(&self, term: &Monomial) -> Result<(), SindyError> {
         let n_vars = self.names.len();
-        if term.powers[n_vars..].iter().any(|&power| power != 0) || term.gate_mask >> n_vars != 0 {
-            return Err(self.invalid(term, "uses a variable the library does not have"));
-        }
-        if term.powers.iter().any(|&power| usize::from(power) > MAX_POWER) {
-            return Err(self.invalid(term, "power above the core's limit"));
+        if !term.is_canonical(n_vars) || term.gate_mask >> n_vars != 0 {
+            return Err(self.invalid(term, "uses a variable the library does not have, or unordered factors"));
         }
         Ok(())
     }
@@ -296,19 +301,17 @@ impl Library {
 }
 
 /// Appends the monomials of exactly `degree` in the variables `start..n_vars` (times the
-/// powers already in `powers`), in lexicographic order of the non-decreasing index tuples,
-/// skipping those with a power above [`MAX_POWER`].
+/// powers already in `powers`), in lexicographic order of the non-decreasing index tuples;
+/// a total degree above [`MAX_DEGREE`] (which the caller rules out) gives no monomial.
 fn push_combinations(n_vars: usize, degree: u8, start: usize, powers: &mut [u8; MAX_VARS], out: &mut Vec<Monomial>) {
     if degree == 0 {
-        out.push(Monomial { powers: *powers, gate_mask: 0 });
+        out.extend(Monomial::from_powers(powers, 0));
         return;
     }
     for var in start..n_vars {
-        if usize::from(powers[var]) < MAX_POWER {
-            powers[var] += 1;
-            push_combinations(n_vars, degree - 1, var, powers, out);
-            powers[var] -= 1;
-        }
+        powers[var] += 1;
+        push_combinations(n_vars, degree - 1, var, powers, out);
+        powers[var] -= 1;
     }
 }
 
@@ -336,17 +339,21 @@ mod tests {
     }
 
     #[test]
-    fn powers_never_exceed_the_core_limit() {
-        let library = Library::polynomial(&["a", "b"], 5, true).unwrap();
-        assert!(library.terms().iter().all(|term| term.powers.iter().all(|&p| usize::from(p) <= MAX_POWER)));
-        assert!(library.term_names().contains(&"a^3*b^2".to_owned()));
-        assert!(!library.term_names().contains(&"a^4".to_owned()));
+    fn degrees_never_exceed_the_core_limit() {
+        let library = Library::polynomial(&["a", "b"], 3, true).unwrap();
+        assert!(library.terms().iter().all(|term| term.degree() <= MAX_DEGREE as u32));
+        assert!(library.term_names().contains(&"a^2*b".to_owned()));
+        assert_eq!(library.len(), 10);
+        assert!(matches!(Library::polynomial(&["a", "b"], 4, true), Err(SindyError::DegreeTooHigh { found: 4 })));
         let mut other = Library::new(&["a"]).unwrap();
-        let too_high = Monomial { powers: [4, 0, 0, 0, 0, 0], gate_mask: 0 };
-        assert!(matches!(other.push(too_high), Err(SindyError::InvalidTerm { .. })));
         assert!(matches!(other.monomial(&[("a", 2), ("a", 2)], &[]), Err(SindyError::InvalidTerm { .. })));
-        let foreign = Monomial { powers: [0, 1, 0, 0, 0, 0], gate_mask: 0 };
+        let foreign = Monomial::from_powers(&[0, 1, 0, 0, 0, 0], 0).unwrap();
         assert!(matches!(other.push(foreign), Err(SindyError::InvalidTerm { .. })));
+        let unordered = Monomial { factors: [0, 0, estimator_core::sparse::ONE_FACTOR], gate_mask: 0 };
+        assert!(other.push(unordered).is_ok());
+        let mut two = Library::new(&["a", "b"]).unwrap();
+        let unordered = Monomial { factors: [1, 0, estimator_core::sparse::ONE_FACTOR], gate_mask: 0 };
+        assert!(matches!(two.push(unordered), Err(SindyError::InvalidTerm { .. })));
     }
 
     #[test]
@@ -378,7 +385,7 @@ mod tests {
     #[test]
     fn theta_is_monomial_eval_f64_and_the_sparse_model_agrees() {
         let mut library = plant_library();
-        library.gate_where("cmu", |term| term.powers[0] == 1).unwrap();
+        library.gate_where("cmu", |term| term.powers()[0] == 1).unwrap();
         library.set_gate_threshold("cmu", 1e-3).unwrap();
         let samples: Vec<[f64; MAX_VARS]> = (0..50)
             .map(|k| {
