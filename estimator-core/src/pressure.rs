@@ -21,6 +21,13 @@
 use crate::coeffs::{N_PRESSURE_INPUTS, N_TAPS, PRESSURE_RANK, PressureModel};
 use crate::health::Health;
 
+/// `last_bits` before a channel's first finite reading: a NaN pattern, which no finite
+/// reading repeats.
+const NO_READING_BITS: u32 = 0x7fc0_0000;
+
+/// Every tap's bit.
+const ALL_TAPS: u16 = (1 << N_TAPS) - 1;
+
 /// Largest magnitude a reduced state may reach before it is treated as diverged and reset.
 const STATE_LIMIT: f32 = 1.0e6;
 
@@ -45,11 +52,16 @@ pub struct PressureFilter {
     gate_limit: [f32; N_TAPS],
     /// Consecutive rejections (or, for an isolated channel, consecutive passes) per channel.
     streak: [u16; N_TAPS],
+    /// Channels whose streak is not zero.
+    streaking: u16,
     isolated: u16,
     /// Bit pattern of each channel's last finite reading.
     last_bits: [u32; N_TAPS],
-    /// Consecutive readings of each channel equal to `last_bits` (saturating).
+    /// Consecutive readings of each channel equal to the one before (saturating): a channel
+    /// is stuck at `STUCK_AFTER_STEPS - 1` repeats, its `STUCK_AFTER_STEPS`-th equal reading.
     repeats: [u8; N_TAPS],
+    /// Channels whose `repeats` is not zero.
+    repeating: u16,
 }
 
 /// Result of one pressure step.
@@ -85,9 +97,11 @@ impl PressureFilter {
             cl_constant,
             gate_limit,
             streak: [0; N_TAPS],
+            streaking: 0,
             isolated: 0,
-            last_bits: [0; N_TAPS],
+            last_bits: [NO_READING_BITS; N_TAPS],
             repeats: [0; N_TAPS],
+            repeating: 0,
         }
     }
 
@@ -114,36 +128,43 @@ impl PressureFilter {
         health: &mut Health,
     ) -> PressureEstimate {
         let predicted = predict(model, &self.modes, inputs);
+        // Branch-free over the taps: a missing reading gives a NaN or infinite innovation,
+        // which fails the gate (a NaN compares false) and is zeroed below before it is used.
         let mut innovation = [0.0f32; N_TAPS];
-        let (mut finite_mask, mut pass_mask) = (0u16, 0u16);
-        for tap in 0..N_TAPS {
-            let bit = 1u16 << tap;
-            if !cp[tap].is_finite() {
-                health.cp_missing |= bit;
-                continue;
-            }
-            innovation[tap] = cp[tap] - (dot(&model.c[tap], &predicted) + model.cp_mean[tap]);
-            finite_mask |= bit;
-            if innovation[tap].abs() <= self.gate_limit[tap] {
-                pass_mask |= bit;
-            }
+        let mut pass_mask = 0u16;
+        let taps = innovation.iter_mut().zip(cp).zip(&model.c).zip(&model.cp_mean).zip(&self.gate_limit);
+        for (tap, ((((value, &measured), c_row), &mean), &limit)) in taps.enumerate() {
+            let nu = measured - (dot(c_row, &predicted) + mean);
+            *value = nu;
+            pass_mask |= u16::from(nu.abs() <= limit) << tap;
         }
+        // A passing channel has a finite innovation, hence a finite reading: the readings need
+        // a look of their own only when some channel failed.
+        let finite_mask = if pass_mask == ALL_TAPS {
+            ALL_TAPS
+        } else {
+            cp.iter().enumerate().fold(0u16, |mask, (tap, value)| mask | u16::from(value.is_finite()) << tap)
+        };
+        pass_mask &= finite_mask;
+        health.cp_missing |= !finite_mask & ALL_TAPS;
         // When every measured channel fails at once, the prediction is off (start-up, a jump of
         // the inputs), not twelve sensors: accept them all rather than lose the filter.
         if pass_mask == 0 {
             pass_mask = finite_mask;
         }
         // A frozen reading never passes, even when all are frozen (the whole front end hung).
-        pass_mask &= !self.stuck_mask(cp);
+        pass_mask &= !self.stuck_mask(cp, finite_mask);
         let used_mask = self.track_faults(model, finite_mask, pass_mask, health);
-        for (tap, value) in innovation.iter_mut().enumerate() {
-            if used_mask & (1 << tap) == 0 {
-                *value = 0.0;
+        if used_mask != ALL_TAPS {
+            for (tap, value) in innovation.iter_mut().enumerate() {
+                if used_mask & (1 << tap) == 0 {
+                    *value = 0.0;
+                }
             }
         }
         let measured = used_mask != 0;
         self.modes = predicted;
-        for (mode, gain_row) in self.modes.iter_mut().zip(&model.gain) {
+        for (mode, gain_row) in self.modes.iter_mut().zip(&model.gain).take(usize::from(model.rank)) {
             *mode += dot(gain_row, &innovation);
         }
         if !self.modes.iter().all(|&mode| crate::bounded(mode, STATE_LIMIT)) {
@@ -163,21 +184,37 @@ impl PressureFilter {
     }
 
     /// Counts each channel's bit-identical repeats and returns the channels that are stuck
-    /// ([`STUCK_AFTER_STEPS`] equal readings in a row).
-    fn stuck_mask(&mut self, cp: &[f32; N_TAPS]) -> u16 {
-        let mut stuck = 0u16;
+    /// ([`STUCK_AFTER_STEPS`] equal readings in a row). A missing reading (NaN, infinite; not
+    /// in `finite_mask`) neither counts nor breaks the streak, so dropouts cannot hide a frozen
+    /// channel.
+    fn stuck_mask(&mut self, cp: &[f32; N_TAPS], finite_mask: u16) -> u16 {
         // Zipped iterators, not indices: the optimiser then needs no bounds check (and the
-        // step keeps its link-time proof of no panic path). A missing reading (NaN, infinite)
-        // neither counts nor breaks the streak, so dropouts cannot hide a frozen channel; it is
-        // handled by selects rather than a branch, which keeps the loop cheap on the M4F.
-        let channels = cp.iter().zip(self.last_bits.iter_mut()).zip(self.repeats.iter_mut());
-        for (tap, ((value, last_bits), repeats)) in channels.enumerate() {
-            let missing = !value.is_finite();
-            let bits = if missing { *last_bits } else { value.to_bits() };
-            let counted = if bits == *last_bits { repeats.saturating_add(1) } else { 1 };
-            *repeats = if missing { *repeats } else { counted };
-            *last_bits = bits;
-            stuck |= u16::from(*repeats >= STUCK_AFTER_STEPS) << tap;
+        // step keeps its link-time proof of no panic path); selects rather than branches keep
+        // the loop cheap on the M4F.
+        let mut repeated = 0u16;
+        for (tap, (value, last_bits)) in cp.iter().zip(self.last_bits.iter_mut()).enumerate() {
+            let bits = value.to_bits();
+            repeated |= u16::from(bits == *last_bits) << tap;
+            *last_bits = if finite_mask & (1 << tap) != 0 { bits } else { *last_bits };
+        }
+        repeated &= finite_mask;
+        // The usual step: no measured channel repeated its reading and none had a run of
+        // repeats going, so every count stays zero.
+        if repeated == 0 && self.repeating & finite_mask == 0 {
+            return 0;
+        }
+        let mut stuck = 0u16;
+        for (tap, repeats) in self.repeats.iter_mut().enumerate() {
+            let bit = 1u16 << tap;
+            if finite_mask & bit != 0 {
+                *repeats = if repeated & bit != 0 { repeats.saturating_add(1) } else { 0 };
+            }
+            stuck |= u16::from(*repeats >= STUCK_AFTER_STEPS - 1) << tap;
+            if *repeats == 0 {
+                self.repeating &= !bit;
+            } else {
+                self.repeating |= bit;
+            }
         }
         stuck
     }
@@ -185,6 +222,11 @@ impl PressureFilter {
     /// Updates each measured channel's streak and isolation from whether it passed the gate,
     /// flags rejections, and returns the channels that correct the prediction this step.
     fn track_faults(&mut self, model: &PressureModel, finite_mask: u16, pass_mask: u16, health: &mut Health) -> u16 {
+        // The usual step: every measured channel passes and none is isolated or has a streak
+        // running, so every streak stays zero and nothing changes.
+        if pass_mask == finite_mask && self.isolated == 0 && self.streaking & finite_mask == 0 {
+            return pass_mask;
+        }
         for tap in 0..N_TAPS {
             let bit = 1u16 << tap;
             if finite_mask & bit == 0 {
@@ -199,6 +241,11 @@ impl PressureFilter {
                 self.isolated ^= bit;
                 *streak = 0;
             }
+            if *streak == 0 {
+                self.streaking &= !bit;
+            } else {
+                self.streaking |= bit;
+            }
             if !passes {
                 health.cp_rejected |= bit;
             }
@@ -207,23 +254,32 @@ impl PressureFilter {
     }
 }
 
-/// `A a + B u`.
+/// `A a + B u` over the model's rank (the rows past it are zero in a validated set, so they
+/// stay zero).
+///
+/// The loop over the rows runs to the runtime rank rather than the constant
+/// [`PRESSURE_RANK`]: the optimiser then keeps one loop whose row pointer advances, and each
+/// row's coefficients load from that pointer with small offsets. Fully unrolled with the
+/// constant bound, every load of the 2.6 kB set needed its own address computation (the M4F's
+/// VLDR reaches only 1 kB), which doubled the instructions per multiply-add.
 fn predict(
     model: &PressureModel,
     modes: &[f32; PRESSURE_RANK],
     inputs: &[f32; N_PRESSURE_INPUTS],
 ) -> [f32; PRESSURE_RANK] {
-    core::array::from_fn(|row| dot(&model.a[row], modes) + dot(&model.b[row], inputs))
+    let mut predicted = [0.0f32; PRESSURE_RANK];
+    let rows = predicted.iter_mut().zip(&model.a).zip(&model.b).take(usize::from(model.rank));
+    for ((value, a_row), b_row) in rows {
+        *value = dot(a_row, modes) + dot(b_row, inputs);
+    }
+    predicted
 }
 
-/// Dot product with four partial sums, so that the additions do not form one long chain of
-/// dependent instructions (the fixed length unrolls completely).
+/// Dot product, summed in order. It starts from `-0.0`, the identity of f32 addition
+/// (`-0.0 + x == x` for every `x`, signed zeros included), so the first product is not added
+/// to a zero that would need its own instruction.
 fn dot<const N: usize>(a: &[f32; N], b: &[f32; N]) -> f32 {
-    let mut partial = [0.0f32; 4];
-    for (idx, (x, y)) in a.iter().zip(b).enumerate() {
-        partial[idx % 4] += x * y;
-    }
-    (partial[0] + partial[1]) + (partial[2] + partial[3])
+    a.iter().zip(b).fold(-0.0f32, |sum, (x, y)| sum + x * y)
 }
 
 #[cfg(test)]
