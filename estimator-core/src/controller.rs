@@ -11,6 +11,7 @@
 use crate::coeffs::{CoefficientSet, ControllerParams};
 use crate::health::Health;
 use crate::plant::Plant;
+use crate::sparse::{Interpreted, ModelId, SparseEval};
 
 /// Inputs of one controller step.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -57,6 +58,20 @@ impl Controller {
         blocks: Blocks,
         health: &mut Health,
     ) -> Demand {
+        self.step_with(Interpreted, set, plants, input, blocks, health)
+    }
+
+    /// [`Controller::step`] with the plant models evaluated by `eval` (the estimator's
+    /// [`crate::Estimator::evaluator`]).
+    pub fn step_with<E: SparseEval>(
+        &mut self,
+        eval: E,
+        set: &CoefficientSet,
+        plants: &[Plant; 2],
+        input: &ControllerInput,
+        blocks: Blocks,
+        health: &mut Health,
+    ) -> Demand {
         let params = &set.controller;
         let target = if blocks.feedforward && input.disturbance_cl.is_finite() { -input.disturbance_cl } else { 0.0 };
         self.filtered_target = params.causality_pole * self.filtered_target + (1.0 - params.causality_pole) * target;
@@ -66,7 +81,7 @@ impl Controller {
         }
         let error = if error.is_finite() { error } else { 0.0 };
         let moment = self.filtered_target + params.feedback_kp * error + params.feedback_ki * self.integral;
-        let (cmu, saturated) = allocate(set, plants, moment, input.alpha_rad);
+        let (cmu, saturated) = allocate(eval, set, plants, moment, input.alpha_rad);
         if saturated {
             health.set(Health::CMU_SATURATED);
         } else {
@@ -92,9 +107,17 @@ pub struct Blocks {
 
 /// Chooses the jet and its Cmu for a total next-step moment `demand`; returns the demands and
 /// whether the chosen jet saturated.
-fn allocate(set: &CoefficientSet, plants: &[Plant; 2], demand: f32, alpha_rad: f32) -> ([f32; 2], bool) {
+fn allocate<E: SparseEval>(
+    eval: E,
+    set: &CoefficientSet,
+    plants: &[Plant; 2],
+    demand: f32,
+    alpha_rad: f32,
+) -> ([f32; 2], bool) {
     let params = &set.controller;
-    let next = |side: usize, cmu: f32| set.plant[side].model.eval(&plants[side].variables(cmu, alpha_rad));
+    let next = |side: usize, cmu: f32| {
+        eval.eval(ModelId::plant(side), &set.plant[side].model, &plants[side].variables(cmu, alpha_rad))
+    };
     let coasting = [next(0, 0.0), next(1, 0.0)];
     let full = [next(0, params.cmu_max), next(1, params.cmu_max)];
     let wanted = demand - coasting[0] - coasting[1];
@@ -174,7 +197,7 @@ mod tests {
     fn demand_within_reach_is_met_by_the_jet_of_its_sign() {
         let plants = [Plant::new(); 2];
         for (demand, side) in [(1e-4f32, 0usize), (-1e-4, 1)] {
-            let (cmu, saturated) = allocate(&PRIOR, &plants, demand, 0.0);
+            let (cmu, saturated) = allocate(Interpreted, &PRIOR, &plants, demand, 0.0);
             assert!(!saturated);
             assert_eq!(cmu[1 - side], 0.0, "blowing is one-signed per jet: the other jet is off");
             assert!(cmu[side] > 0.0 && cmu[side] <= PRIOR.controller.cmu_max);
@@ -186,10 +209,10 @@ mod tests {
     #[test]
     fn demand_out_of_reach_saturates_at_the_largest_cmu() {
         let plants = [Plant::new(); 2];
-        let (cmu, saturated) = allocate(&PRIOR, &plants, 0.5, 0.0);
+        let (cmu, saturated) = allocate(Interpreted, &PRIOR, &plants, 0.5, 0.0);
         assert!(saturated);
         assert_eq!(cmu, [PRIOR.controller.cmu_max, 0.0]);
-        assert_eq!(allocate(&PRIOR, &plants, 0.0, 0.0), ([0.0; 2], false));
+        assert_eq!(allocate(Interpreted, &PRIOR, &plants, 0.0, 0.0), ([0.0; 2], false));
     }
 
     #[test]

@@ -4,7 +4,7 @@
 //! (paper eq. 11 and its admissibility rules).
 
 use crate::coeffs::{MAX_VARS, coupling_var};
-use crate::sparse::SparseModel;
+use crate::sparse::{Interpreted, ModelId, SparseEval, SparseModel};
 
 /// Inputs of the coupling operator.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -41,6 +41,12 @@ impl CouplingInput {
 /// The correction `Xi Theta(...)`; zero when it is not finite (flagged by the caller).
 #[must_use]
 pub fn correction(model: &SparseModel, input: &CouplingInput) -> Option<f32> {
-    let value = model.eval(&input.variables());
+    correction_with(Interpreted, model, input)
+}
+
+/// [`correction`] with the model evaluated by `eval` (as the set's coupling model).
+#[must_use]
+pub fn correction_with<E: SparseEval>(eval: E, model: &SparseModel, input: &CouplingInput) -> Option<f32> {
+    let value = eval.eval(ModelId::Coupling, model, &input.variables());
     value.is_finite().then_some(value)
 }

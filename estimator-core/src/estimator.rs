@@ -8,14 +8,15 @@
 //! 6. plant of each jet, `C_l,AFC` ([`crate::plant`]);
 //! 7. linear superposition and the coupling operator ([`crate::coupling`]).
 
-use crate::coeffs::{CoefficientSet, N_PRESSURE_INPUTS, N_TAPS};
-use crate::coupling::{CouplingInput, correction};
+use crate::coeffs::{CoefficientSet, CompiledDefault, N_PRESSURE_INPUTS, N_TAPS};
+use crate::coupling::{CouplingInput, correction_with};
 use crate::egk::{Egk, EgkInput};
 use crate::fusion::Fusion;
 use crate::health::Health;
 use crate::plant::Plant;
 use crate::pressure::PressureFilter;
 use crate::rate::{RateEstimator, RollRates};
+use crate::sparse::{Interpreted, ModelId, SparseEval};
 
 /// Largest |roll angle| accepted, deg (beyond it the input is clamped and flagged).
 const PHI_LIMIT_DEG: f32 = 90.0;
@@ -126,12 +127,14 @@ struct Held {
     cmu: [f32; 2],
 }
 
-/// The estimator: its coefficient tables (borrowed, so that const tables stay in flash) and
-/// the state of every stage. It lives in a `static` on the target: [`Estimator::new`] is
+/// The estimator: its coefficient tables (borrowed, so that const tables stay in flash), how it
+/// evaluates their sparse models (`E`: from the tables, or the built-in set's generated code)
+/// and the state of every stage. It lives in a `static` on the target: its constructors are
 /// `const`, and the size is fixed at compile time.
 #[derive(Debug, Clone)]
-pub struct Estimator<'a> {
+pub struct Estimator<'a, E: SparseEval = Interpreted> {
     set: &'a CoefficientSet,
+    eval: E,
     held: Held,
     rates: RateEstimator,
     egk: Egk,
@@ -150,8 +153,25 @@ impl<'a> Estimator<'a> {
     /// [`crate::blob::validate`] first; the step stays panic-free with any tables).
     #[must_use]
     pub const fn new(set: &'a CoefficientSet) -> Self {
+        Self::with(set, Interpreted)
+    }
+}
+
+impl Estimator<'static, CompiledDefault> {
+    /// A fresh estimator over the built-in tables ([`crate::coeffs::BUILT_IN`]) whose sparse
+    /// models run as generated code: the same outputs, bit for bit, as
+    /// `Estimator::new(&BUILT_IN)`, in fewer instructions.
+    #[must_use]
+    pub const fn built_in() -> Self {
+        Self::with(&crate::coeffs::BUILT_IN, CompiledDefault::NEW)
+    }
+}
+
+impl<'a, E: SparseEval> Estimator<'a, E> {
+    const fn with(set: &'a CoefficientSet, eval: E) -> Self {
         Self {
             set,
+            eval,
             held: Held { phi_deg: 0.0, alpha_deg: set.alpha_schedule_deg[0], cmu: [0.0; 2] },
             rates: RateEstimator::new(),
             egk: Egk::new(),
@@ -170,15 +190,21 @@ impl<'a> Estimator<'a> {
         self.set
     }
 
+    /// How the sparse models are evaluated (pass it to [`crate::controller::Controller::step_with`]).
+    #[must_use]
+    pub const fn evaluator(&self) -> E {
+        self.eval
+    }
+
     /// The plants' states (for the controller blocks).
     #[must_use]
     pub const fn plants(&self) -> &[Plant; 2] {
         &self.plants
     }
 
-    /// Returns to the state of [`Estimator::new`].
+    /// Returns to the state of a fresh estimator over the same tables.
     pub fn reset(&mut self) {
-        *self = Self::new(self.set);
+        *self = Self::with(self.set, self.eval);
     }
 
     /// One fixed step. Never panics; a missing or non-finite input is held and flagged, and no
@@ -197,8 +223,10 @@ impl<'a> Estimator<'a> {
             health.set(Health::PRESSURE_UNUSED);
         }
         let (cl_roll, fusion_reset) = self.fusion.step(&set.fusion, cl_egk, pressure.measured.then_some(pressure.cl));
-        let (cl_afc_port, port_reset) = self.plants[0].step(&set.plant[0], self.held.cmu[0], alpha_rad);
-        let (cl_afc_stbd, stbd_reset) = self.plants[1].step(&set.plant[1], self.held.cmu[1], alpha_rad);
+        let (cl_afc_port, port_reset) =
+            self.plants[0].step_with(self.eval, ModelId::PlantPort, &set.plant[0], self.held.cmu[0], alpha_rad);
+        let (cl_afc_stbd, stbd_reset) =
+            self.plants[1].step_with(self.eval, ModelId::PlantStarboard, &set.plant[1], self.held.cmu[1], alpha_rad);
         if egk_reset || fusion_reset || port_reset || stbd_reset {
             health.set(Health::STATE_RESET);
         }
@@ -213,7 +241,7 @@ impl<'a> Estimator<'a> {
             phi_rad,
         };
         self.last_cmu_total = cmu_total;
-        let coupling = match correction(&set.coupling, &coupling_input) {
+        let coupling = match correction_with(self.eval, &set.coupling, &coupling_input) {
             Some(value) if value.abs() <= COUPLING_LIMIT => value,
             Some(value) => {
                 health.set(Health::ESTIMATE_LIMITED);

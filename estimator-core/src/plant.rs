@@ -4,6 +4,7 @@
 //! `C_l,slow[k+1] = p C_l,slow[k] + (1 - p) C_l,AFC[k]` ([`PlantParams`]).
 
 use crate::coeffs::{MAX_VARS, PlantParams, plant_var};
+use crate::sparse::{Interpreted, ModelId, SparseEval};
 
 /// Largest magnitude of the plant's moment before it is treated as diverged (100 times the
 /// authority of a trailing-edge jet).
@@ -51,11 +52,23 @@ impl Plant {
     /// Returns `C_l,AFC[k]` and advances to `k + 1` with this step's Cmu; the second value is
     /// true when the state diverged and was reset.
     pub fn step(&mut self, params: &PlantParams, cmu: f32, alpha_rad: f32) -> (f32, bool) {
+        self.step_with(Interpreted, ModelId::PlantPort, params, cmu, alpha_rad)
+    }
+
+    /// [`Plant::step`] with the model evaluated by `eval` as the set's model `id`.
+    pub fn step_with<E: SparseEval>(
+        &mut self,
+        eval: E,
+        id: ModelId,
+        params: &PlantParams,
+        cmu: f32,
+        alpha_rad: f32,
+    ) -> (f32, bool) {
         let current = self.cl;
         // `max` and `min`, not `clamp`: with any tables (a NaN or negative bound) they cannot
         // panic.
         let cmu = cmu.max(0.0).min(params.cmu_max);
-        let next = params.model.eval(&self.variables(cmu, alpha_rad));
+        let next = eval.eval(id, &params.model, &self.variables(cmu, alpha_rad));
         let slow = params.slow_pole * self.slow + (1.0 - params.slow_pole) * current;
         let reset = !(crate::bounded(next, CL_LIMIT) && crate::bounded(slow, CL_LIMIT));
         (self.cl, self.slow) = if reset { (0.0, 0.0) } else { (next, slow) };

@@ -165,7 +165,8 @@ impl SparseModel {
                 active |= 1 << var_idx;
             }
         }
-        let mut sum = 0.0f32;
+        // `-0.0` is the identity of f32 addition, so the first term is not added to a zero.
+        let mut sum = -0.0f32;
         for term in self.active_terms() {
             if term.monomial.gate_mask & !active != 0 {
                 continue;
@@ -186,6 +187,46 @@ impl SparseModel {
             .iter()
             .map(|term| f64::from(term.coeff) * term.monomial.eval_f64(vars, &self.gate_threshold))
             .sum()
+    }
+}
+
+/// Which of a coefficient set's sparse models.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ModelId {
+    /// `plant[0].model`.
+    PlantPort,
+    /// `plant[1].model`.
+    PlantStarboard,
+    /// `coupling`.
+    Coupling,
+}
+
+impl ModelId {
+    /// The plant model of a side (0 port, 1 starboard).
+    #[must_use]
+    pub const fn plant(side: usize) -> Self {
+        if side == 0 { Self::PlantPort } else { Self::PlantStarboard }
+    }
+}
+
+/// How the estimator and the controller evaluate the coefficient set's sparse models.
+///
+/// [`Interpreted`] reads the tables, so it serves any set (a loaded blob); the built-in set
+/// also has its models generated as straight-line code (`coeffs::CompiledDefault`), which
+/// gives the same bits at a fraction of the instructions on the M4F (issue 6).
+pub trait SparseEval: Copy {
+    /// The value of `model`, which is the set's model `id`, at `vars`.
+    fn eval(self, id: ModelId, model: &SparseModel, vars: &[f32; MAX_VARS]) -> f32;
+}
+
+/// Evaluates a sparse model from its tables ([`SparseModel::eval`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Interpreted;
+
+impl SparseEval for Interpreted {
+    #[inline]
+    fn eval(self, _id: ModelId, model: &SparseModel, vars: &[f32; MAX_VARS]) -> f32 {
+        model.eval(vars)
     }
 }
 

@@ -6,8 +6,10 @@
 //! is generic over the traits: the firmware binds them to the board (or, in QEMU, to a replay file
 //! read through semihosting), the host tests bind them to fakes.
 
+use estimator_core::coeffs::CompiledDefault;
 use estimator_core::coeffs::N_TAPS;
 use estimator_core::controller::{Blocks, Controller, ControllerInput, Demand};
+use estimator_core::sparse::{Interpreted, SparseEval};
 use estimator_core::{CoefficientSet, Estimator, Health, Input, Output};
 
 /// The 12-channel pressure front end: one conversion of every tap per step.
@@ -69,10 +71,10 @@ pub struct StepResult {
 }
 
 /// The fixed-rate loop's state: the estimator, the controller and which blocks are on. Its
-/// constructor is `const`, so it can live in a `static` on the target.
+/// constructors are `const`, so it can live in a `static` on the target.
 #[derive(Debug, Clone)]
-pub struct FixedRateLoop<'a> {
-    estimator: Estimator<'a>,
+pub struct FixedRateLoop<'a, E: SparseEval = Interpreted> {
+    estimator: Estimator<'a, E>,
     controller: Controller,
     blocks: Blocks,
 }
@@ -83,10 +85,21 @@ impl<'a> FixedRateLoop<'a> {
     pub const fn new(set: &'a CoefficientSet, blocks: Blocks) -> Self {
         Self { estimator: Estimator::new(set), controller: Controller::new(), blocks }
     }
+}
 
+impl FixedRateLoop<'static, CompiledDefault> {
+    /// At rest, with the built-in tables and their sparse models compiled to code
+    /// ([`Estimator::built_in`]): what the firmware flies.
+    #[must_use]
+    pub const fn built_in(blocks: Blocks) -> Self {
+        Self { estimator: Estimator::built_in(), controller: Controller::new(), blocks }
+    }
+}
+
+impl<'a, E: SparseEval> FixedRateLoop<'a, E> {
     /// The estimator (for its coefficients and state).
     #[must_use]
-    pub const fn estimator(&self) -> &Estimator<'a> {
+    pub const fn estimator(&self) -> &Estimator<'a, E> {
         &self.estimator
     }
 
@@ -108,9 +121,9 @@ impl<'a> FixedRateLoop<'a> {
             measured_cl: f32::NAN,
             alpha_rad: alpha_deg * (core::f32::consts::PI / 180.0),
         };
-        let set = self.estimator.coefficients();
+        let (eval, set, plants) = (self.estimator.evaluator(), self.estimator.coefficients(), self.estimator.plants());
         let demand =
-            self.controller.step(set, self.estimator.plants(), &controller_input, self.blocks, &mut controller_health);
+            self.controller.step_with(eval, set, plants, &controller_input, self.blocks, &mut controller_health);
         let end = ticks.now();
         board.set_cmu(demand.cmu);
         StepResult {

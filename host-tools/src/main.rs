@@ -9,6 +9,7 @@ use anyhow::Context;
 use clap::{Parser, Subcommand};
 use firmware_sim::campaign::Scenario;
 use firmware_sim::fault::FaultSpec;
+use host_tools::qemu::SparseCode;
 use indicatif::{ProgressBar, ProgressStyle};
 
 #[derive(Debug, Parser)]
@@ -109,6 +110,10 @@ struct QemuReplayArgs {
     /// QEMU time limit, s.
     #[arg(long, default_value_t = 600)]
     timeout_s: u64,
+    /// Read the sparse models from the tables instead of running their generated code (the cost
+    /// of a coefficient set loaded at run time).
+    #[arg(long)]
+    interpreted: bool,
 }
 
 #[derive(Debug, clap::Args)]
@@ -524,7 +529,8 @@ fn qemu_replay(args: QemuReplayArgs) -> anyhow::Result<()> {
     // complete or absent, like every other output folder.
     let mut summary = String::new();
     firmware_sim::atomic::write_folder::<anyhow::Error>(&args.out, "summary.txt", |tmp| {
-        let replay = host_tools::qemu::qemu_replay(run, args.samples, tmp, timeout)?;
+        let code = if args.interpreted { SparseCode::Interpreted } else { SparseCode::Compiled };
+        let replay = host_tools::qemu::qemu_replay(run, args.samples, tmp, timeout, code)?;
         summary = host_tools::qemu::summary(&replay);
         std::fs::write(tmp.join("summary.txt"), &summary).context("writing summary.txt")
     })?;

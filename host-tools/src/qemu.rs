@@ -34,15 +34,29 @@ pub fn workspace_root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).parent().map_or_else(|| PathBuf::from("."), Path::to_path_buf)
 }
 
-/// Builds the firmware (the `firmware` profile: release with fat LTO) and returns the ELF's path. It uses its own target folder
-/// (`target/firmware`), so that it can run while another cargo holds the workspace's.
-pub fn build_firmware() -> anyhow::Result<PathBuf> {
+/// How the firmware evaluates the sparse models of its built-in tables.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SparseCode {
+    /// As generated straight-line code (`estimator_core::coeffs::CompiledDefault`): what flies.
+    Compiled,
+    /// From the tables, as a coefficient set loaded at run time would be (feature `interpreted`).
+    Interpreted,
+}
+
+/// Builds the firmware (the `firmware` profile: release with fat LTO) and returns the ELF's
+/// path. It uses its own target folder (`target/firmware`, or `target/firmware-interpreted`),
+/// so that it can run while another cargo holds the workspace's.
+pub fn build_firmware(code: SparseCode) -> anyhow::Result<PathBuf> {
     let root = workspace_root();
-    let target_dir = root.join("target").join("firmware");
+    let (folder, features) = match code {
+        SparseCode::Compiled => ("firmware", "target"),
+        SparseCode::Interpreted => ("firmware-interpreted", "target,interpreted"),
+    };
+    let target_dir = root.join("target").join(folder);
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
     let status = Command::new(cargo)
         .current_dir(&root)
-        .args(["build", "-p", "firmware-sim", "--bin", "firmware", "--no-default-features", "--features", "target"])
+        .args(["build", "-p", "firmware-sim", "--bin", "firmware", "--no-default-features", "--features", features])
         .args(["--target", TARGET, "--profile", "firmware", "--target-dir"])
         .arg(&target_dir)
         .status()
@@ -292,9 +306,15 @@ pub struct QemuReplay {
 }
 
 /// Builds the firmware, runs the first `n_samples` of `run` in QEMU with its files in `dir`, and
-/// compares with the host replay of the same samples.
-pub fn qemu_replay(run: &Run, n_samples: Option<usize>, dir: &Path, timeout: Duration) -> anyhow::Result<QemuReplay> {
-    let elf = build_firmware()?;
+/// compares with the host replay of the same samples (which interprets the tables).
+pub fn qemu_replay(
+    run: &Run,
+    n_samples: Option<usize>,
+    dir: &Path,
+    timeout: Duration,
+    code: SparseCode,
+) -> anyhow::Result<QemuReplay> {
+    let elf = build_firmware(code)?;
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let input = input_bytes(run, n_samples);
     let n = (input.len() - HEADER_LEN) / INPUT_LEN;
@@ -302,7 +322,7 @@ pub fn qemu_replay(run: &Run, n_samples: Option<usize>, dir: &Path, timeout: Dur
         .and_then(|mut file| file.write_all(&input))
         .with_context(|| format!("writing {}", dir.join(INPUT_FILE).display()))?;
     let firmware = run_firmware(&elf, dir, timeout)?;
-    let mut host = crate::replay::replay_run(&estimator_core::coeffs::DEFAULT, run);
+    let mut host = crate::replay::replay_run(&estimator_core::coeffs::BUILT_IN, run);
     host.truncate(n);
     let comparison = compare(&host, &firmware.records);
     let cost = step_cost(&firmware.trailer);

@@ -26,7 +26,8 @@ fn firmware_in_qemu_matches_the_host_replay() {
     let dataset = scenario.simulate(&|| {}).expect("simulates");
     let run = &dataset.runs[0];
     let dir = tempfile::tempdir().unwrap();
-    let replay = qemu::qemu_replay(run, Some(2000), dir.path(), Duration::from_secs(120)).expect("runs in QEMU");
+    let replay = qemu::qemu_replay(run, Some(2000), dir.path(), Duration::from_secs(120), qemu::SparseCode::Compiled)
+        .expect("runs in QEMU");
     println!("{}", qemu::summary(&replay));
     let comparison = &replay.comparison;
     assert_eq!(comparison.steps, 2000);

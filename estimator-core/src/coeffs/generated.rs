@@ -2,7 +2,9 @@
 //!
 //! the fit on the default synthetic campaign (host-tools simulate, seed 1; host-tools fit; models/default)
 
-use super::{CoefficientSet, ControllerParams, EgkParams, FusionParams, PlantParams, PressureModel, RateFilter};
+use super::{
+    CoefficientSet, ControllerParams, EgkParams, FusionParams, MAX_VARS, PlantParams, PressureModel, RateFilter,
+};
 use crate::sparse::{Monomial, SparseModel, Term};
 
 /// The default coefficient set compiled into the estimator: the fit on the default synthetic campaign (host-tools simulate, seed 1; host-tools fit; models/default)
@@ -673,3 +675,102 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
         inversion_iterations: 16,
     },
 };
+
+/// `DEFAULT.plant[0].model` as straight-line code, bit-identical to `SparseModel::eval` of the tables.
+#[inline]
+#[must_use]
+pub(super) fn plant_port(x: &[f32; MAX_VARS]) -> f32 {
+    let mut sum = -0.0f32;
+    sum += 0.9522405f32 * x[0];
+    sum += 0.13134484f32 * x[1];
+    sum += 2.3539707e-5f32 * x[3];
+    sum += -1.1871004f32 * x[0] * x[1];
+    sum += 0.09701266f32 * x[0] * x[3];
+    sum += -12.634288f32 * x[1] * x[1];
+    sum += 0.07221177f32 * x[1] * x[3];
+    sum += -7.933953e-5f32 * x[3] * x[3];
+    sum += -2.2119155f32 * x[1] * x[1] * x[3];
+    sum += -0.35991332f32 * x[1] * x[3] * x[3];
+    sum += -0.16400301f32 * x[0] * x[3] * x[3];
+    sum += 2.6323197f32 * x[0] * x[1] * x[3];
+    sum += 657.2904f32 * x[1] * x[1] * x[1];
+    sum += -0.005039553f32 * x[4];
+    sum += -0.039638113f32 * x[3] * x[4];
+    sum
+}
+
+/// `DEFAULT.plant[1].model` as straight-line code, bit-identical to `SparseModel::eval` of the tables.
+#[inline]
+#[must_use]
+pub(super) fn plant_starboard(x: &[f32; MAX_VARS]) -> f32 {
+    let mut sum = -0.0f32;
+    sum += 0.9522405f32 * x[0];
+    sum += -0.13134484f32 * x[1];
+    sum += -2.3539707e-5f32 * x[3];
+    sum += -1.1871004f32 * x[0] * x[1];
+    sum += 0.09701266f32 * x[0] * x[3];
+    sum += 12.634288f32 * x[1] * x[1];
+    sum += -0.07221177f32 * x[1] * x[3];
+    sum += 7.933953e-5f32 * x[3] * x[3];
+    sum += 2.2119155f32 * x[1] * x[1] * x[3];
+    sum += 0.35991332f32 * x[1] * x[3] * x[3];
+    sum += -0.16400301f32 * x[0] * x[3] * x[3];
+    sum += 2.6323197f32 * x[0] * x[1] * x[3];
+    sum += -657.2904f32 * x[1] * x[1] * x[1];
+    sum += -0.005039553f32 * x[4];
+    sum += -0.039638113f32 * x[3] * x[4];
+    sum
+}
+
+/// `DEFAULT.coupling` as straight-line code, bit-identical to `SparseModel::eval` of the tables.
+#[inline]
+#[must_use]
+pub(super) fn coupling(x: &[f32; MAX_VARS]) -> f32 {
+    let mut sum = -0.0f32;
+    if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
+        sum += 15.652921f32 * x[0] * x[1];
+    }
+    if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
+        sum += -10.500782f32 * x[0] * x[3];
+    }
+    if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
+        sum += 0.28847295f32 * x[1] * x[2];
+    }
+    if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
+        sum += 0.09237332f32 * x[1] * x[5];
+    }
+    if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
+        sum += -2214.7783f32 * x[0] * x[1] * x[1];
+    }
+    if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
+        sum += 2333.838f32 * x[0] * x[1] * x[3];
+    }
+    if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
+        sum += 15.584691f32 * x[0] * x[2] * x[3];
+    }
+    if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
+        sum += -589.26056f32 * x[1] * x[1] * x[1];
+    }
+    if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
+        sum += -81.24636f32 * x[1] * x[1] * x[2];
+    }
+    if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
+        sum += 1554.0586f32 * x[1] * x[1] * x[3];
+    }
+    if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
+        sum += -53.19568f32 * x[1] * x[1] * x[5];
+    }
+    if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
+        sum += -0.40823796f32 * x[1] * x[2] * x[2];
+    }
+    if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
+        sum += 78.28408f32 * x[1] * x[2] * x[3];
+    }
+    if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
+        sum += -1073.004f32 * x[1] * x[3] * x[3];
+    }
+    if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
+        sum += 47.0772f32 * x[1] * x[3] * x[5];
+    }
+    sum
+}

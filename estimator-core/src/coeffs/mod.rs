@@ -6,12 +6,14 @@
 //! pressure-model modes are zero rows and columns, unused sparse terms are zero terms past
 //! `n_terms`).
 
+mod compiled;
 mod generated;
 
 use serde::{Deserialize, Serialize};
 
 use crate::sparse::SparseModel;
 
+pub use compiled::{BUILT_IN, CompiledDefault};
 pub use generated::DEFAULT;
 
 /// Version of the coefficient-set layout. Bump it whenever a field or a size changes.

@@ -37,9 +37,9 @@ mod board {
     use cortex_m_rt::entry;
     use cortex_m_semihosting::debug;
     use defmt_semihosting as _;
+    use estimator_core::Input;
     use estimator_core::coeffs::N_TAPS;
     use estimator_core::controller::Blocks;
-    use estimator_core::{CoefficientSet, Input};
     use firmware_sim::frames::{
         HEADER_LEN, INPUT_LEN, MAGIC_INPUT, MAGIC_OUTPUT, OUTPUT_LEN, OutputRecord, Trailer, decode_header,
         decode_input, encode_header, encode_output, encode_trailer,
@@ -59,13 +59,25 @@ mod board {
     /// Iterations of the calibration loop (`subs`/`bne`: 2 instructions each).
     const CALIBRATION_LOOPS: u32 = 200_000;
 
-    /// The compiled-in coefficient tables, once, in flash.
-    static SET: CoefficientSet = estimator_core::coeffs::DEFAULT;
+    /// Feedforward on; the board has no balance, so no feedback.
+    const BLOCKS: Blocks = Blocks { feedforward: true, feedback: false };
 
-    /// The estimator and the controller: in a static, never allocated. Feedforward on; the board has
-    /// no balance, so no feedback.
-    static LOOP: Mutex<RefCell<FixedRateLoop<'static>>> =
-        Mutex::new(RefCell::new(FixedRateLoop::new(&SET, Blocks { feedforward: true, feedback: false })));
+    /// The estimator over the compiled-in tables (`estimator_core::coeffs::BUILT_IN`, in flash)
+    /// with their sparse models as generated code: what flies.
+    #[cfg(not(feature = "interpreted"))]
+    type Loop = FixedRateLoop<'static, estimator_core::coeffs::CompiledDefault>;
+    #[cfg(not(feature = "interpreted"))]
+    const FRESH: Loop = FixedRateLoop::built_in(BLOCKS);
+
+    /// With the feature `interpreted`: the same tables with the sparse models read from them,
+    /// the cost of a coefficient set loaded at run time.
+    #[cfg(feature = "interpreted")]
+    type Loop = FixedRateLoop<'static>;
+    #[cfg(feature = "interpreted")]
+    const FRESH: Loop = FixedRateLoop::new(&estimator_core::coeffs::BUILT_IN, BLOCKS);
+
+    /// The estimator and the controller: in a static, never allocated.
+    static LOOP: Mutex<RefCell<Loop>> = Mutex::new(RefCell::new(FRESH));
 
     /// SysTick as the step timer: counts down from [`RELOAD`] at the core clock.
     struct SysTickCounter;
