@@ -48,14 +48,17 @@ mod board {
 
     #[entry]
     fn main() -> ! {
+        // Both evaluations of the sparse models: from the tables (any loaded set) and the
+        // built-in set's generated code (what the firmware flies).
         let mut estimator = Estimator::new(&SET);
+        let mut compiled = Estimator::built_in();
         loop {
             // SAFETY: INPUT is a valid, aligned, immutable static of a `Copy` type.
             let input = unsafe { core::ptr::read_volatile(&raw const INPUT) };
-            let output = estimator.step(&input);
-            // Keep the output observable so that the step is not optimised away.
-            // SAFETY: `output` is a live local; the volatile read only prevents elision.
-            let _ = unsafe { core::ptr::read_volatile(&raw const output) };
+            let outputs = [estimator.step(&input), compiled.step(&input)];
+            // Keep the outputs observable so that the steps are not optimised away.
+            // SAFETY: `outputs` is a live local; the volatile read only prevents elision.
+            let _ = unsafe { core::ptr::read_volatile(&raw const outputs) };
         }
     }
 
