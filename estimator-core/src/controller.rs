@@ -152,7 +152,7 @@ const INVERSION_TOLERANCE: f32 = 1e-9;
 /// like bisection, at most `inversion_iterations` evaluations. A target out of reach gives the
 /// nearer end of the range, reported as saturated.
 fn invert(params: &ControllerParams, residual: impl Fn(f32) -> f32, ends: Bracket) -> (f32, bool) {
-    let (mut a, mut b) = (0.0f32, params.cmu_max.max(0.0));
+    let (mut a, mut b) = (0.0f32, crate::max_num(params.cmu_max, 0.0));
     let (mut fa, mut fb) = (ends.low, ends.high);
     if !(fa.is_finite() && fb.is_finite()) {
         return (0.0, true);
@@ -166,7 +166,11 @@ fn invert(params: &ControllerParams, residual: impl Fn(f32) -> f32, ends: Bracke
         }
         let secant = b - fb * (b - a) / (fb - fa);
         // Fall back to bisection where the secant step is not usable.
-        let c = if secant.is_finite() && secant >= a.min(b) && secant <= a.max(b) { secant } else { 0.5 * (a + b) };
+        let c = if secant.is_finite() && secant >= crate::min_num(a, b) && secant <= crate::max_num(a, b) {
+            secant
+        } else {
+            0.5 * (a + b)
+        };
         let fc = residual(c);
         if !fc.is_finite() {
             break;

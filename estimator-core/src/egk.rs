@@ -25,10 +25,12 @@ pub fn gk_update(state: f32, target: f32, decay: f32) -> f32 {
     target + (state - target) * decay
 }
 
-/// Fischenberg breakdown curve `x0(a) = (1 - tanh(k (a - a*))) / 2`, `a` in deg.
+/// Fischenberg breakdown curve `x0(a) = (1 - tanh(k (a - a*))) / 2`, `a` in deg, computed as
+/// the identical logistic `1 / (1 + e^(2 k (a - a*)))` with the f32 exponential of
+/// [`crate::exp`] (one exponential and a division instead of libm's `tanhf`).
 #[must_use]
 pub fn breakdown_curve(params: &EgkParams, incidence_deg: f32) -> f32 {
-    0.5 * (1.0 - libm::tanhf(params.steepness_per_deg * (incidence_deg - params.breakdown_deg)))
+    1.0 / (1.0 + crate::exp::exp(2.0 * params.steepness_per_deg * (incidence_deg - params.breakdown_deg)))
 }
 
 /// The eGK parameters at `alpha_deg`: linear interpolation between the schedule's breakpoints,
@@ -102,7 +104,7 @@ pub fn roll_geometry(
     let tan_cos = tan_alpha * cos_phi;
     let alpha_b = libm::atanf(tan_cos);
     // cos(asin(s)) = sqrt(1 - s^2): a square root instead of a cosine.
-    let cos_beta = libm::sqrtf(1.0 - sin_beta * sin_beta).max(1e-6);
+    let cos_beta = crate::max_num(libm::sqrtf(1.0 - sin_beta * sin_beta), 1e-6);
     let dbeta_dphi = sin_alpha * cos_phi / cos_beta;
     let dalpha_b_dphi = -tan_alpha * sin_phi / (1.0 + tan_cos * tan_cos);
     let to_deg = 180.0 / core::f32::consts::PI;
@@ -208,7 +210,7 @@ impl Egk {
         }
         self.cached_alpha_deg = alpha_deg;
         self.params = params_at(set, alpha_deg);
-        let tau1_s = self.params.tau1_s.max(1e-6);
+        let tau1_s = crate::max_num(self.params.tau1_s, 1e-6);
         self.decay = libm::expf(-set.dt_s / tau1_s);
         let alpha_rad = alpha_deg.to_radians();
         self.sin_alpha = libm::sinf(alpha_rad);

@@ -52,6 +52,7 @@ pub mod controller;
 pub mod coupling;
 pub mod egk;
 pub mod estimator;
+pub mod exp;
 pub mod fusion;
 pub mod health;
 pub mod plant;
@@ -68,5 +69,36 @@ pub use coeffs::CoefficientSet;
 pub(crate) fn bounded(value: f32, limit: f32) -> bool {
     value.abs() <= limit
 }
+
+/// `a.max(b)` (IEEE maxNum: a NaN operand is ignored) as a comparison: the M4F has no VMAXNM,
+/// so `f32::max` is a library call there.
+#[inline]
+pub(crate) fn max_num(a: f32, b: f32) -> f32 {
+    if a > b || b.is_nan() { a } else { b }
+}
+
+/// `a.min(b)` (IEEE minNum: a NaN operand is ignored) as a comparison, for the same reason.
+#[inline]
+pub(crate) fn min_num(a: f32, b: f32) -> f32 {
+    if a < b || b.is_nan() { a } else { b }
+}
 pub use estimator::{Estimator, Input, Output};
 pub use health::Health;
+
+#[cfg(test)]
+mod tests {
+    use super::{max_num, min_num};
+
+    #[test]
+    fn max_and_min_by_comparison_match_the_library() {
+        let values = [f32::NAN, f32::NEG_INFINITY, -2.5, -0.0, 0.0, 1e-30, 3.0, f32::INFINITY];
+        for a in values {
+            for b in values {
+                let same =
+                    |x: f32, y: f32| x.to_bits() == y.to_bits() || (x == 0.0 && y == 0.0) || (x.is_nan() && y.is_nan());
+                assert!(same(max_num(a, b), a.max(b)), "max({a}, {b})");
+                assert!(same(min_num(a, b), a.min(b)), "min({a}, {b})");
+            }
+        }
+    }
+}

@@ -65,9 +65,9 @@ impl Plant {
         alpha_rad: f32,
     ) -> (f32, bool) {
         let current = self.cl;
-        // `max` and `min`, not `clamp`: with any tables (a NaN or negative bound) they cannot
+        // maxNum and minNum, not `clamp`: with any tables (a NaN or negative bound) they cannot
         // panic.
-        let cmu = cmu.max(0.0).min(params.cmu_max);
+        let cmu = crate::min_num(crate::max_num(cmu, 0.0), params.cmu_max);
         let next = eval.eval(id, &params.model, &self.variables(cmu, alpha_rad));
         let slow = params.slow_pole * self.slow + (1.0 - params.slow_pole) * current;
         let reset = !(crate::bounded(next, CL_LIMIT) && crate::bounded(slow, CL_LIMIT));

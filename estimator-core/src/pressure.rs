@@ -28,7 +28,9 @@ const NO_READING_BITS: u32 = 0x7fc0_0000;
 /// Every tap's bit.
 const ALL_TAPS: u16 = (1 << N_TAPS) - 1;
 
-/// Largest magnitude a reduced state may reach before it is treated as diverged and reset.
+/// Largest Euclidean norm the reduced state may reach before it is treated as diverged and
+/// reset (its square is checked: a sum of squares costs one multiply-add per mode, and a NaN
+/// or an overflow fails the comparison as well).
 const STATE_LIMIT: f32 = 1.0e6;
 
 /// Consecutive bit-identical readings after which a channel counts as stuck (20 ms at 1 kHz,
@@ -167,7 +169,8 @@ impl PressureFilter {
         for (mode, gain_row) in self.modes.iter_mut().zip(&model.gain).take(usize::from(model.rank)) {
             *mode += dot(gain_row, &innovation);
         }
-        if !self.modes.iter().all(|&mode| crate::bounded(mode, STATE_LIMIT)) {
+        let within_limit = dot(&self.modes, &self.modes) <= STATE_LIMIT * STATE_LIMIT;
+        if !within_limit {
             self.modes = [0.0; PRESSURE_RANK];
             health.set(Health::STATE_RESET);
         }
@@ -192,10 +195,19 @@ impl PressureFilter {
         // step keeps its link-time proof of no panic path); selects rather than branches keep
         // the loop cheap on the M4F.
         let mut repeated = 0u16;
-        for (tap, (value, last_bits)) in cp.iter().zip(self.last_bits.iter_mut()).enumerate() {
-            let bits = value.to_bits();
-            repeated |= u16::from(bits == *last_bits) << tap;
-            *last_bits = if finite_mask & (1 << tap) != 0 { bits } else { *last_bits };
+        let channels = cp.iter().zip(self.last_bits.iter_mut()).enumerate();
+        if finite_mask == ALL_TAPS {
+            for (tap, (value, last_bits)) in channels {
+                let bits = value.to_bits();
+                repeated |= u16::from(bits == *last_bits) << tap;
+                *last_bits = bits;
+            }
+        } else {
+            for (tap, (value, last_bits)) in channels {
+                let bits = value.to_bits();
+                repeated |= u16::from(bits == *last_bits) << tap;
+                *last_bits = if finite_mask & (1 << tap) != 0 { bits } else { *last_bits };
+            }
         }
         repeated &= finite_mask;
         // The usual step: no measured channel repeated its reading and none had a run of

@@ -44,8 +44,8 @@ use rayon::prelude::*;
 use super::dare::{DareError, DareOptions, solve_filter_dare};
 use super::signals::RunSignals;
 
-/// Largest magnitude of a reduced state before the core treats it as diverged and resets it
-/// (`estimator_core::pressure`, `STATE_LIMIT`).
+/// Largest Euclidean norm of a reduced state before the core treats it as diverged and resets
+/// it (`estimator_core::pressure`, `STATE_LIMIT`).
 const STATE_LIMIT: f64 = 1.0e6;
 
 /// Iteration cap of the dense decompositions (SVD, Schur); they converge in far fewer.
@@ -1100,7 +1100,8 @@ impl PressureFilterF64 {
             }
         }
         self.modes = predicted + &model.gain * DVector::from_row_slice(&innovation);
-        if !self.modes.iter().all(|mode| mode.abs() <= STATE_LIMIT) {
+        let within_limit = self.modes.norm_squared() <= STATE_LIMIT * STATE_LIMIT;
+        if !within_limit {
             self.modes.fill(0.0);
         }
         let filtered_cp = output(model, &self.modes);
