@@ -129,14 +129,13 @@ impl PressureFilter {
         cp: &[f32; N_TAPS],
         health: &mut Health,
     ) -> PressureEstimate {
-        let predicted = predict(model, &self.modes, inputs);
+        let predicted = predict(&model.a, &model.b, &self.modes, inputs);
         // Branch-free over the taps: a missing reading gives a NaN or infinite innovation,
         // which fails the gate (a NaN compares false) and is zeroed below before it is used.
-        let mut innovation = [0.0f32; N_TAPS];
+        let mut innovation = output(&model.c, &model.cp_mean, &predicted);
         let mut pass_mask = 0u16;
-        let taps = innovation.iter_mut().zip(cp).zip(&model.c).zip(&model.cp_mean).zip(&self.gate_limit);
-        for (tap, ((((value, &measured), c_row), &mean), &limit)) in taps.enumerate() {
-            let nu = measured - (dot(c_row, &predicted) + mean);
+        for (tap, ((value, &measured), &limit)) in innovation.iter_mut().zip(cp).zip(&self.gate_limit).enumerate() {
+            let nu = measured - *value;
             *value = nu;
             pass_mask |= u16::from(nu.abs() <= limit) << tap;
         }
@@ -165,10 +164,7 @@ impl PressureFilter {
             }
         }
         let measured = used_mask != 0;
-        self.modes = predicted;
-        for (mode, gain_row) in self.modes.iter_mut().zip(&model.gain).take(usize::from(model.rank)) {
-            *mode += dot(gain_row, &innovation);
-        }
+        self.modes = correct(&model.gain, &predicted, &innovation);
         let within_limit = dot(&self.modes, &self.modes) <= STATE_LIMIT * STATE_LIMIT;
         if !within_limit {
             self.modes = [0.0; PRESSURE_RANK];
@@ -266,25 +262,38 @@ impl PressureFilter {
     }
 }
 
-/// `A a + B u` over the model's rank (the rows past it are zero in a validated set, so they
-/// stay zero).
-///
-/// The loop over the rows runs to the runtime rank rather than the constant
-/// [`PRESSURE_RANK`]: the optimiser then keeps one loop whose row pointer advances, and each
-/// row's coefficients load from that pointer with small offsets. Fully unrolled with the
-/// constant bound, every load of the 2.6 kB set needed its own address computation (the M4F's
-/// VLDR reaches only 1 kB), which doubled the instructions per multiply-add.
+// The three matrix products below are functions of their own (`inline(never)`), each given
+// its matrix: fully unrolled, every coefficient then loads with a small offset from that
+// matrix's address. Inlined into the step, the loads were addressed from the start of the
+// 2.6 kB coefficient set, beyond the 1 kB reach of the M4F's VLDR, and each needed an address
+// computation of its own, which doubled the instructions per multiply-add. A zero row (a mode
+// past the model's rank) gives zero.
+
+/// `A a + B u`.
+#[inline(never)]
 fn predict(
-    model: &PressureModel,
+    a: &[[f32; PRESSURE_RANK]; PRESSURE_RANK],
+    b: &[[f32; N_PRESSURE_INPUTS]; PRESSURE_RANK],
     modes: &[f32; PRESSURE_RANK],
     inputs: &[f32; N_PRESSURE_INPUTS],
 ) -> [f32; PRESSURE_RANK] {
-    let mut predicted = [0.0f32; PRESSURE_RANK];
-    let rows = predicted.iter_mut().zip(&model.a).zip(&model.b).take(usize::from(model.rank));
-    for ((value, a_row), b_row) in rows {
-        *value = dot(a_row, modes) + dot(b_row, inputs);
-    }
-    predicted
+    core::array::from_fn(|row| dot(&a[row], modes) + dot(&b[row], inputs))
+}
+
+/// `C a + cp_mean`: the pressures the model expects.
+#[inline(never)]
+fn output(c: &[[f32; PRESSURE_RANK]; N_TAPS], cp_mean: &[f32; N_TAPS], modes: &[f32; PRESSURE_RANK]) -> [f32; N_TAPS] {
+    core::array::from_fn(|tap| dot(&c[tap], modes) + cp_mean[tap])
+}
+
+/// `a + K nu`: the corrected state.
+#[inline(never)]
+fn correct(
+    gain: &[[f32; N_TAPS]; PRESSURE_RANK],
+    predicted: &[f32; PRESSURE_RANK],
+    innovation: &[f32; N_TAPS],
+) -> [f32; PRESSURE_RANK] {
+    core::array::from_fn(|mode| predicted[mode] + dot(&gain[mode], innovation))
 }
 
 /// Dot product, summed in order. It starts from `-0.0`, the identity of f32 addition
