@@ -202,8 +202,11 @@ impl Egk {
         (cl, reset)
     }
 
-    /// Recomputes the alpha-dependent constants when alpha changes (bitwise), so that a run at
-    /// constant alpha pays for one `expf` and one `tanf` only.
+    /// Recomputes the alpha-dependent constants when alpha changes (bitwise). In flight alpha
+    /// changes every step, so this is in f32 arithmetic only ([`crate::exp`],
+    /// [`crate::trig`]): libm's `expf`, `sinf` and `tanf` compute in f64, which the M4F
+    /// emulates in software at thousands of instructions. The estimator holds alpha within
+    /// +-60 deg, inside the +-90 deg of `sin_cos`; `tan` is limited to `+-1.5` rad as before.
     fn refresh_alpha(&mut self, set: &CoefficientSet, alpha_deg: f32) {
         if alpha_deg.to_bits() == self.cached_alpha_deg.to_bits() {
             return;
@@ -211,10 +214,11 @@ impl Egk {
         self.cached_alpha_deg = alpha_deg;
         self.params = params_at(set, alpha_deg);
         let tau1_s = crate::max_num(self.params.tau1_s, 1e-6);
-        self.decay = libm::expf(-set.dt_s / tau1_s);
+        self.decay = crate::exp::exp(-set.dt_s / tau1_s);
         let alpha_rad = alpha_deg.to_radians();
-        self.sin_alpha = libm::sinf(alpha_rad);
-        self.tan_alpha = libm::tanf(alpha_rad.clamp(-1.5, 1.5));
+        self.sin_alpha = crate::trig::sin_cos(alpha_rad).0;
+        let (sin_limited, cos_limited) = crate::trig::sin_cos(alpha_rad.clamp(-1.5, 1.5));
+        self.tan_alpha = sin_limited / cos_limited;
     }
 }
 
