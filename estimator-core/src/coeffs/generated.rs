@@ -647,21 +647,21 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
     ],
     coupling: SparseModel {
         terms: [
-            Term { coeff: 15.652921, monomial: Monomial { factors: [0, 1, 6], gate_mask: 40 } },
-            Term { coeff: -10.500782, monomial: Monomial { factors: [0, 3, 6], gate_mask: 40 } },
-            Term { coeff: 0.28847295, monomial: Monomial { factors: [1, 2, 6], gate_mask: 40 } },
-            Term { coeff: 0.09237332, monomial: Monomial { factors: [1, 5, 6], gate_mask: 40 } },
-            Term { coeff: -2214.7783, monomial: Monomial { factors: [0, 1, 1], gate_mask: 40 } },
-            Term { coeff: 2333.838, monomial: Monomial { factors: [0, 1, 3], gate_mask: 40 } },
-            Term { coeff: 15.584691, monomial: Monomial { factors: [0, 2, 3], gate_mask: 40 } },
-            Term { coeff: -589.26056, monomial: Monomial { factors: [1, 1, 1], gate_mask: 40 } },
-            Term { coeff: -81.24636, monomial: Monomial { factors: [1, 1, 2], gate_mask: 40 } },
-            Term { coeff: 1554.0586, monomial: Monomial { factors: [1, 1, 3], gate_mask: 40 } },
-            Term { coeff: -53.19568, monomial: Monomial { factors: [1, 1, 5], gate_mask: 40 } },
-            Term { coeff: -0.40823796, monomial: Monomial { factors: [1, 2, 2], gate_mask: 40 } },
-            Term { coeff: 78.28408, monomial: Monomial { factors: [1, 2, 3], gate_mask: 40 } },
-            Term { coeff: -1073.004, monomial: Monomial { factors: [1, 3, 3], gate_mask: 40 } },
-            Term { coeff: 47.0772, monomial: Monomial { factors: [1, 3, 5], gate_mask: 40 } },
+            Term { coeff: 15.652937, monomial: Monomial { factors: [0, 1, 6], gate_mask: 40 } },
+            Term { coeff: -10.500791, monomial: Monomial { factors: [0, 3, 6], gate_mask: 40 } },
+            Term { coeff: 0.2884736, monomial: Monomial { factors: [1, 2, 6], gate_mask: 40 } },
+            Term { coeff: 0.092373736, monomial: Monomial { factors: [1, 5, 6], gate_mask: 40 } },
+            Term { coeff: -2214.7786, monomial: Monomial { factors: [0, 1, 1], gate_mask: 40 } },
+            Term { coeff: 2333.8367, monomial: Monomial { factors: [0, 1, 3], gate_mask: 40 } },
+            Term { coeff: 15.584706, monomial: Monomial { factors: [0, 2, 3], gate_mask: 40 } },
+            Term { coeff: -589.26184, monomial: Monomial { factors: [1, 1, 1], gate_mask: 40 } },
+            Term { coeff: -81.24646, monomial: Monomial { factors: [1, 1, 2], gate_mask: 40 } },
+            Term { coeff: 1554.0625, monomial: Monomial { factors: [1, 1, 3], gate_mask: 40 } },
+            Term { coeff: -53.195786, monomial: Monomial { factors: [1, 1, 5], gate_mask: 40 } },
+            Term { coeff: -0.40823844, monomial: Monomial { factors: [1, 2, 2], gate_mask: 40 } },
+            Term { coeff: 78.28412, monomial: Monomial { factors: [1, 2, 3], gate_mask: 40 } },
+            Term { coeff: -1073.0068, monomial: Monomial { factors: [1, 3, 3], gate_mask: 40 } },
+            Term { coeff: 47.077286, monomial: Monomial { factors: [1, 3, 5], gate_mask: 40 } },
             Term { coeff: 0.0, monomial: Monomial { factors: [6, 6, 6], gate_mask: 0 } },
         ],
         n_terms: 15,
@@ -728,49 +728,49 @@ pub(super) fn plant_starboard(x: &[f32; MAX_VARS]) -> f32 {
 pub(super) fn coupling(x: &[f32; MAX_VARS]) -> f32 {
     let mut sum = -0.0f32;
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += 15.652921f32 * x[0] * x[1];
+        sum += 15.652937f32 * x[0] * x[1];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += -10.500782f32 * x[0] * x[3];
+        sum += -10.500791f32 * x[0] * x[3];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += 0.28847295f32 * x[1] * x[2];
+        sum += 0.2884736f32 * x[1] * x[2];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += 0.09237332f32 * x[1] * x[5];
+        sum += 0.092373736f32 * x[1] * x[5];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += -2214.7783f32 * x[0] * x[1] * x[1];
+        sum += -2214.7786f32 * x[0] * x[1] * x[1];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += 2333.838f32 * x[0] * x[1] * x[3];
+        sum += 2333.8367f32 * x[0] * x[1] * x[3];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += 15.584691f32 * x[0] * x[2] * x[3];
+        sum += 15.584706f32 * x[0] * x[2] * x[3];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += -589.26056f32 * x[1] * x[1] * x[1];
+        sum += -589.26184f32 * x[1] * x[1] * x[1];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += -81.24636f32 * x[1] * x[1] * x[2];
+        sum += -81.24646f32 * x[1] * x[1] * x[2];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += 1554.0586f32 * x[1] * x[1] * x[3];
+        sum += 1554.0625f32 * x[1] * x[1] * x[3];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += -53.19568f32 * x[1] * x[1] * x[5];
+        sum += -53.195786f32 * x[1] * x[1] * x[5];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += -0.40823796f32 * x[1] * x[2] * x[2];
+        sum += -0.40823844f32 * x[1] * x[2] * x[2];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += 78.28408f32 * x[1] * x[2] * x[3];
+        sum += 78.28412f32 * x[1] * x[2] * x[3];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += -1073.004f32 * x[1] * x[3] * x[3];
+        sum += -1073.0068f32 * x[1] * x[3] * x[3];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += 47.0772f32 * x[1] * x[3] * x[5];
+        sum += 47.077286f32 * x[1] * x[3] * x[5];
     }
     sum
 }
