@@ -180,7 +180,10 @@ impl fmt::Display for BlobError {
                 write!(f, "unsupported blob format version {found}, this build reads version {BLOB_FORMAT_VERSION}")
             }
             Self::SchemaMismatch { expected, found } => {
-                write!(f, "coefficient schema mismatch: expected hash {expected:#010x}, found {found:#010x}")
+                write!(
+                    f,
+                    "coefficient schema mismatch: expected hash {expected:#010x}, found {found:#010x} (the blob was written for another layout of the coefficient set: refit it with this build's `host-tools fit`)"
+                )
             }
             Self::ReservedNonZero { found } => write!(f, "reserved header bytes are not zero: {found:#06x}"),
             Self::LengthMismatch { declared, actual } => {
