@@ -41,7 +41,7 @@ pub const HEADER_LEN: usize = 20;
 /// Written by hand (const string formatting does not exist); a unit test checks that the
 /// numbers in it are the current values of the constants. Update it with any change of a field
 /// or size: its hash, [`SCHEMA_HASH`], is what makes an old blob fail to load.
-pub const SCHEMA: &str = "rlcs coefficient set; schema_version=3; \
+pub const SCHEMA: &str = "rlcs coefficient set; schema_version=4; \
     N_TAPS=12; PRESSURE_RANK=10; N_PRESSURE_INPUTS=5; N_ALPHA=8; MAX_TERMS=16; MAX_VARS=6; MAX_DEGREE=3; \
     N_PLANT_VARS=5; N_COUPLING_VARS=6; \
     CoefficientSet{schema_version:u16,dt_s:f32,rate_filter:RateFilter,alpha_schedule_deg:[f32;N_ALPHA],\
@@ -52,7 +52,7 @@ pub const SCHEMA: &str = "rlcs coefficient set; schema_version=3; \
     clbeta_per_rad:f32,clp:f32,clpdot:f32,vortex_gain:f32,bias:f32,half_span_time_s:f32}; \
     PressureModel{rank:u8,a:[[f32;PRESSURE_RANK];PRESSURE_RANK],b:[[f32;N_PRESSURE_INPUTS];PRESSURE_RANK],\
     c:[[f32;PRESSURE_RANK];N_TAPS],cp_mean:[f32;N_TAPS],gain:[[f32;N_TAPS];PRESSURE_RANK],\
-    innovation_std:[f32;N_TAPS],gate_sigma:f32,isolate_after:u16,cl_weights:[f32;N_TAPS],cl_offset:f32}; \
+    innovation_std:[f32;N_TAPS],gate_sigma:f32,isolate_after:u16,cl_weights:[[f32;N_TAPS];N_ALPHA],cl_offset:[f32;N_ALPHA]}; \
     FusionParams{rho:f32,gain:f32}; \
     PlantParams{slow_pole:f32,cmu_max:f32,model:SparseModel}; \
     SparseModel{terms:[Term;MAX_TERMS],n_terms:u8,gate_threshold:[f32;MAX_VARS]}; \
@@ -81,8 +81,8 @@ const F32_PER_PRESSURE: usize = PRESSURE_RANK * PRESSURE_RANK
     + PRESSURE_RANK * N_TAPS
     + N_TAPS
     + 1
-    + N_TAPS
-    + 1;
+    + N_ALPHA * N_TAPS
+    + N_ALPHA;
 /// Every f32 of a [`CoefficientSet`]: `dt_s`, the rate filter, the alpha schedule, the eGK
 /// parameters, the pressure model, the fusion, the two plant models (slow pole, Cmu range
 /// and sparse model) and the coupling, and the controller.
@@ -476,8 +476,8 @@ fn check_all_finite(set: &CoefficientSet) -> Result<(), BlobError> {
     all_finite(gain.as_flattened(), "pressure.gain is not finite")?;
     all_finite(innovation_std, "pressure.innovation_std is not finite")?;
     all_finite(&[*gate_sigma], "pressure.gate_sigma is not finite")?;
-    all_finite(cl_weights, "pressure.cl_weights is not finite")?;
-    all_finite(&[*cl_offset], "pressure.cl_offset is not finite")?;
+    all_finite(cl_weights.as_flattened(), "pressure.cl_weights is not finite")?;
+    all_finite(cl_offset, "pressure.cl_offset is not finite")?;
 
     let FusionParams { rho, gain } = fusion;
     all_finite(&[*rho], "fusion.rho is not finite")?;
@@ -617,8 +617,8 @@ mod tests {
                 innovation_std: seq.arr(),
                 gate_sigma: seq.next(),
                 isolate_after: 300,
-                cl_weights: seq.arr(),
-                cl_offset: -seq.next(),
+                cl_weights: seq.mat(),
+                cl_offset: seq.arr(),
             },
             fusion: FusionParams { rho: seq.next(), gain: seq.next() },
             plant: [
@@ -675,8 +675,8 @@ mod tests {
                 innovation_std: [big; N_TAPS],
                 gate_sigma: big,
                 isolate_after: u16::MAX,
-                cl_weights: [big; N_TAPS],
-                cl_offset: big,
+                cl_weights: [[big; N_TAPS]; N_ALPHA],
+                cl_offset: [big; N_ALPHA],
             },
             fusion: FusionParams { rho: big, gain: big },
             plant: [PlantParams { slow_pole: big, cmu_max: big, model: sparse }; 2],
@@ -800,8 +800,8 @@ mod tests {
         w.f32s(&p.innovation_std);
         w.f32s(&[p.gate_sigma]);
         w.u16(p.isolate_after);
-        w.f32s(&p.cl_weights);
-        w.f32s(&[p.cl_offset]);
+        w.f32s(p.cl_weights.as_flattened());
+        w.f32s(&p.cl_offset);
         w.f32s(&[set.fusion.rho, set.fusion.gain]);
         w.f32s(&[set.plant[0].slow_pole, set.plant[0].cmu_max]);
         w.sparse(&set.plant[0].model);
@@ -938,7 +938,7 @@ mod tests {
     #[test]
     fn issue_8_pressure_tables_that_overflow_are_rejected_and_never_reach_the_output() {
         let mut set = crate::coeffs::DEFAULT;
-        set.pressure.cl_weights[1] = 1e30;
+        set.pressure.cl_weights[0][1] = 1e30;
         set.pressure.c[1][0] = 1e23;
         assert!(
             matches!(validate(&set), Err(BlobError::Invalid(what)) if what.starts_with("pressure tables overflow"))

@@ -37,26 +37,12 @@ pub fn breakdown_curve(params: &EgkParams, incidence_deg: f32) -> f32 {
 /// held constant outside them.
 #[must_use]
 pub fn params_at(set: &CoefficientSet, alpha_deg: f32) -> EgkParams {
-    let n_alpha = usize::from(set.n_alpha).clamp(1, N_ALPHA);
-    let breakpoints = &set.alpha_schedule_deg[..n_alpha];
-    let upper = breakpoints.iter().position(|&breakpoint| breakpoint > alpha_deg).unwrap_or(n_alpha);
-    if upper == 0 {
-        return set.egk[0];
+    let at = crate::schedule::position(set, alpha_deg);
+    let low = &set.egk[at.lower.min(N_ALPHA - 1)];
+    if at.weight == 0.0 {
+        return *low;
     }
-    if upper == n_alpha {
-        return set.egk[n_alpha - 1];
-    }
-    // `0 < upper < n_alpha <= N_ALPHA`, but the optimiser cannot see it through `position`:
-    // `get` keeps the step free of a bounds-check panic (the link-time check of
-    // firmware-sim's `panic_check` binary), and the fallback is never taken.
-    let (Some(low), Some(high), Some(&low_deg), Some(&high_deg)) =
-        (set.egk.get(upper - 1), set.egk.get(upper), breakpoints.get(upper - 1), breakpoints.get(upper))
-    else {
-        return set.egk[n_alpha - 1];
-    };
-    let span = high_deg - low_deg;
-    let weight = if span > 0.0 { (alpha_deg - low_deg) / span } else { 0.0 };
-    interpolate(low, high, weight)
+    interpolate(low, &set.egk[at.upper.min(N_ALPHA - 1)], at.weight)
 }
 
 fn interpolate(low: &EgkParams, high: &EgkParams, weight: f32) -> EgkParams {

@@ -59,6 +59,7 @@ pub mod plant;
 pub mod pressure;
 pub mod prior;
 pub mod rate;
+pub mod schedule;
 pub mod sparse;
 pub mod time;
 pub mod trig;

@@ -18,8 +18,9 @@
 //! frozen. Such a channel fails the gate (rejected, then isolated like any other) until its
 //! value changes.
 
-use crate::coeffs::{N_PRESSURE_INPUTS, N_TAPS, PRESSURE_RANK, PressureModel};
+use crate::coeffs::{N_ALPHA, N_PRESSURE_INPUTS, N_TAPS, PRESSURE_RANK, PressureModel};
 use crate::health::Health;
+use crate::schedule::SchedulePosition;
 
 /// `last_bits` before a channel's first finite reading: a NaN pattern, which no finite
 /// reading repeats.
@@ -45,11 +46,11 @@ pub const STUCK_AFTER_STEPS: u8 = 20;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PressureFilter {
     modes: [f32; PRESSURE_RANK],
-    /// `w^T C`: the roll-moment map applied to the modes directly, so the step does not rebuild
-    /// the 12 filtered pressures.
-    mode_weights: [f32; PRESSURE_RANK],
-    /// `w . cp_mean + w0`.
-    cl_constant: f32,
+    /// `w^T C` at each breakpoint of the alpha schedule: the roll-moment map applied to the
+    /// modes directly, so the step does not rebuild the 12 filtered pressures.
+    mode_weights: [[f32; PRESSURE_RANK]; N_ALPHA],
+    /// `w . cp_mean + w0` at each breakpoint.
+    cl_constant: [f32; N_ALPHA],
     /// `gate_sigma * innovation_std`: the largest accepted innovation of each tap.
     gate_limit: [f32; N_TAPS],
     /// Consecutive rejections (or, for an isolated channel, consecutive passes) per channel.
@@ -79,17 +80,22 @@ impl PressureFilter {
     /// At the mean pressures, no channel isolated, for the given model.
     #[must_use]
     pub const fn new(model: &PressureModel) -> Self {
-        let mut mode_weights = [0.0; PRESSURE_RANK];
+        let mut mode_weights = [[0.0; PRESSURE_RANK]; N_ALPHA];
         let mut cl_constant = model.cl_offset;
         let mut gate_limit = [0.0; N_TAPS];
         let mut tap = 0;
         while tap < N_TAPS {
-            let mut mode = 0;
-            while mode < PRESSURE_RANK {
-                mode_weights[mode] += model.cl_weights[tap] * model.c[tap][mode];
-                mode += 1;
+            let mut breakpoint = 0;
+            while breakpoint < N_ALPHA {
+                let weight = model.cl_weights[breakpoint][tap];
+                let mut mode = 0;
+                while mode < PRESSURE_RANK {
+                    mode_weights[breakpoint][mode] += weight * model.c[tap][mode];
+                    mode += 1;
+                }
+                cl_constant[breakpoint] += weight * model.cp_mean[tap];
+                breakpoint += 1;
             }
-            cl_constant += model.cl_weights[tap] * model.cp_mean[tap];
             gate_limit[tap] = model.gate_sigma * model.innovation_std[tap];
             tap += 1;
         }
@@ -111,7 +117,11 @@ impl PressureFilter {
     /// constant and the gate limits) are finite: finite tables can overflow in their products.
     #[must_use]
     pub fn derived_constants_are_finite(&self) -> bool {
-        self.cl_constant.is_finite() && self.mode_weights.iter().chain(&self.gate_limit).all(|value| value.is_finite())
+        self.cl_constant
+            .iter()
+            .chain(self.mode_weights.iter().flatten())
+            .chain(&self.gate_limit)
+            .all(|value| value.is_finite())
     }
 
     /// The reduced state.
@@ -121,10 +131,12 @@ impl PressureFilter {
     }
 
     /// Predicts with the inputs `u`, corrects with the measured pressures `cp` and returns the
-    /// pressure-based roll moment. Channel bits of `health` are set here.
+    /// pressure-based roll moment with the map at `at` in the alpha schedule. Channel bits of
+    /// `health` are set here.
     pub fn step(
         &mut self,
         model: &PressureModel,
+        at: SchedulePosition,
         inputs: &[f32; N_PRESSURE_INPUTS],
         cp: &[f32; N_TAPS],
         health: &mut Health,
@@ -171,7 +183,12 @@ impl PressureFilter {
             health.set(Health::STATE_RESET);
         }
         health.cp_isolated = self.isolated;
-        let cl = dot(&self.mode_weights, &self.modes) + self.cl_constant;
+        let map_at = |breakpoint: usize| {
+            let breakpoint = breakpoint.min(N_ALPHA - 1);
+            dot(&self.mode_weights[breakpoint], &self.modes) + self.cl_constant[breakpoint]
+        };
+        let lower = map_at(at.lower);
+        let cl = if at.weight == 0.0 { lower } else { lower + at.weight * (map_at(at.upper) - lower) };
         if !cl.is_finite() {
             // Only with tables whose products overflow (validation rejects them): never pass
             // on a non-finite estimate.
@@ -468,7 +485,7 @@ mod tests {
             tv_prior = update(&tv_prior, &gain);
 
             let cp: [f32; N_TAPS] = core::array::from_fn(|tap| measured[tap] as f32);
-            let _ = core.step(&model, &[0.0; N_PRESSURE_INPUTS], &cp, &mut Health::default());
+            let _ = core.step(&model, SchedulePosition::FIRST, &[0.0; N_PRESSURE_INPUTS], &cp, &mut Health::default());
             if step >= 1000 {
                 for i in 0..RANK {
                     worst_late = worst_late.max((f64::from(core.modes()[i]) - tv_state[i]).abs());
@@ -490,12 +507,18 @@ mod tests {
         let mut gap = cp;
         gap[3] = f32::NAN;
         let mut health = Health::default();
-        let _ = with_gap.step(&model, &[0.0; N_PRESSURE_INPUTS], &gap, &mut health);
+        let _ = with_gap.step(&model, SchedulePosition::FIRST, &[0.0; N_PRESSURE_INPUTS], &gap, &mut health);
         // From rest, the prediction of every tap is its mean: measuring exactly that is a zero
         // innovation.
         let mut cp_without = cp;
         cp_without[3] = model.cp_mean[3];
-        let _ = reference.step(&model, &[0.0; N_PRESSURE_INPUTS], &cp_without, &mut Health::default());
+        let _ = reference.step(
+            &model,
+            SchedulePosition::FIRST,
+            &[0.0; N_PRESSURE_INPUTS],
+            &cp_without,
+            &mut Health::default(),
+        );
         assert_eq!(health.cp_missing, 1 << 3);
         assert_eq!(with_gap.modes(), reference.modes(), "a missing channel is a zero innovation");
     }
@@ -507,6 +530,26 @@ mod tests {
         core::array::from_fn(|tap| model.cp_mean[tap] + wiggle)
     }
 
+    /// The map to `C_l` follows the schedule: between two breakpoints the estimate is the
+    /// interpolation of their maps' values on the same state.
+    #[test]
+    fn map_to_cl_interpolates_between_breakpoints() {
+        let mut model = crate::prior::full_size_fixture().pressure;
+        model.cl_offset[1] = model.cl_offset[0] + 0.01;
+        let cp = live(&model, 0);
+        let estimate = |at: SchedulePosition| {
+            let mut filter = PressureFilter::new(&model);
+            filter.step(&model, at, &[0.0; N_PRESSURE_INPUTS], &cp, &mut Health::default()).cl
+        };
+        let low = estimate(SchedulePosition { lower: 0, upper: 0, weight: 0.0 });
+        let high = estimate(SchedulePosition { lower: 1, upper: 1, weight: 0.0 });
+        let middle = estimate(SchedulePosition { lower: 0, upper: 1, weight: 0.25 });
+        assert_ne!(low, high);
+        assert!((middle - (low + 0.25 * (high - low))).abs() < 1e-7, "{low} {high} {middle}");
+        let beyond = estimate(SchedulePosition { lower: 99, upper: 99, weight: 0.0 });
+        assert!(beyond.is_finite(), "an index past the schedule is clamped, never a panic");
+    }
+
     #[test]
     fn biased_channel_is_rejected_then_isolated_while_others_keep_correcting() {
         let model = crate::prior::full_size_fixture().pressure;
@@ -516,7 +559,7 @@ mod tests {
             let mut cp = live(&model, step);
             cp[6] += 1.0;
             last = Health::default();
-            let estimate = filter.step(&model, &[0.0; N_PRESSURE_INPUTS], &cp, &mut last);
+            let estimate = filter.step(&model, SchedulePosition::FIRST, &[0.0; N_PRESSURE_INPUTS], &cp, &mut last);
             assert!(estimate.measured && estimate.cl.is_finite());
             assert_eq!(last.cp_rejected, 1 << 6, "step {step}");
         }
@@ -524,7 +567,8 @@ mod tests {
         // Back to normal: re-admitted after as many passes in a row.
         for step in 0..usize::from(model.isolate_after) + 1 {
             last = Health::default();
-            let _ = filter.step(&model, &[0.0; N_PRESSURE_INPUTS], &live(&model, step), &mut last);
+            let _ =
+                filter.step(&model, SchedulePosition::FIRST, &[0.0; N_PRESSURE_INPUTS], &live(&model, step), &mut last);
         }
         assert_eq!(last.cp_isolated, 0);
     }
@@ -538,7 +582,7 @@ mod tests {
             let mut cp = live(&model, step);
             cp[2] = frozen_cp;
             let mut health = Health::default();
-            let estimate = filter.step(&model, &[0.0; N_PRESSURE_INPUTS], &cp, &mut health);
+            let estimate = filter.step(&model, SchedulePosition::FIRST, &[0.0; N_PRESSURE_INPUTS], &cp, &mut health);
             assert!(estimate.measured);
             let stuck = step + 1 >= usize::from(STUCK_AFTER_STEPS);
             assert_eq!(health.channel_faulty(2), stuck, "step {step}");
@@ -546,10 +590,12 @@ mod tests {
         }
         // Every channel frozen: nothing corrects the prediction.
         let mut health = Health::default();
-        let mut estimate = filter.step(&model, &[0.0; N_PRESSURE_INPUTS], &model.cp_mean, &mut health);
+        let mut estimate =
+            filter.step(&model, SchedulePosition::FIRST, &[0.0; N_PRESSURE_INPUTS], &model.cp_mean, &mut health);
         for _ in 0..STUCK_AFTER_STEPS {
             health = Health::default();
-            estimate = filter.step(&model, &[0.0; N_PRESSURE_INPUTS], &model.cp_mean, &mut health);
+            estimate =
+                filter.step(&model, SchedulePosition::FIRST, &[0.0; N_PRESSURE_INPUTS], &model.cp_mean, &mut health);
         }
         assert!(!estimate.measured);
         assert_eq!(health.cp_rejected, (1 << N_TAPS) - 1);
@@ -564,7 +610,7 @@ mod tests {
             let mut cp = live(&model, step);
             cp[5] = if step % 3 == 2 { f32::NAN } else { model.cp_mean[5] + 0.003 };
             let mut health = Health::default();
-            let _ = filter.step(&model, &[0.0; N_PRESSURE_INPUTS], &cp, &mut health);
+            let _ = filter.step(&model, SchedulePosition::FIRST, &[0.0; N_PRESSURE_INPUTS], &cp, &mut health);
             if health.channel_faulty(5) && flagged_at.is_none() {
                 flagged_at = Some(step);
             }

@@ -79,8 +79,8 @@ pub const PRIOR: CoefficientSet = CoefficientSet {
         innovation_std: [1.0; N_TAPS],
         gate_sigma: 6.0,
         isolate_after: 20,
-        cl_weights: [0.0; N_TAPS],
-        cl_offset: 0.0,
+        cl_weights: [[0.0; N_TAPS]; N_ALPHA],
+        cl_offset: [0.0; N_ALPHA],
     },
     fusion: FusionParams { rho: 0.999, gain: 0.0 },
     plant: [plant_prior(1.0), plant_prior(-1.0)],
@@ -120,7 +120,9 @@ pub fn full_size_fixture() -> CoefficientSet {
     for tap in 0..N_TAPS {
         pressure.cp_mean[tap] = -0.3 + 0.02 * tap as f32;
         pressure.innovation_std[tap] = 0.02;
-        pressure.cl_weights[tap] = 0.01 * fixture_value(3000 + tap);
+        for (breakpoint, weights) in pressure.cl_weights.iter_mut().enumerate() {
+            weights[tap] = 0.01 * fixture_value(3000 + 100 * breakpoint + tap);
+        }
     }
     set.fusion = FusionParams { rho: 0.999, gain: 0.05 };
     for side in 0..2 {

@@ -9,7 +9,7 @@ use crate::sparse::{Monomial, SparseModel, Term};
 
 /// The default coefficient set compiled into the estimator: the fit on the default synthetic campaign (host-tools simulate, seed 1; host-tools fit; models/default)
 pub const DEFAULT: CoefficientSet = CoefficientSet {
-    schema_version: 3,
+    schema_version: 4,
     dt_s: 0.001,
     rate_filter: RateFilter { rate_pole: 0.66470826, accel_pole: 0.66470826 },
     alpha_schedule_deg: [0.0, 10.0, 20.0, 21.0, 22.0, 23.0, 24.0, 25.0],
@@ -575,22 +575,121 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
         gate_sigma: 5.0,
         isolate_after: 20,
         cl_weights: [
-            -0.1902408,
-            0.13215874,
-            0.18277347,
-            0.020847375,
-            -0.030828288,
-            -0.16289112,
-            -0.3008166,
-            0.254458,
-            -0.20322403,
-            0.5144109,
-            -0.15412533,
-            -0.3211679,
+            [
+                -2.399552, 6.6233144, -5.972951, -2.0041456, 6.155959, -2.7860239, -4.4889264, -1.7267809, 12.711048,
+                1.1126696, -10.16125, 1.4490995,
+            ],
+            [
+                -0.72934604,
+                1.1535017,
+                -0.7848069,
+                -0.012981986,
+                1.1593707,
+                -0.84452194,
+                0.2391122,
+                -0.21050167,
+                0.59345585,
+                -0.07877722,
+                -1.6662993,
+                0.7021523,
+            ],
+            [
+                -0.4864714,
+                0.5240101,
+                -0.34868854,
+                0.36279172,
+                0.6702148,
+                -0.7840319,
+                0.15747465,
+                -0.13836148,
+                0.026649835,
+                0.0989235,
+                -0.56692386,
+                0.29328933,
+            ],
+            [
+                -0.4864714,
+                0.5240101,
+                -0.34868854,
+                0.36279172,
+                0.6702148,
+                -0.7840319,
+                0.15747465,
+                -0.13836148,
+                0.026649835,
+                0.0989235,
+                -0.56692386,
+                0.29328933,
+            ],
+            [
+                -0.4864714,
+                0.5240101,
+                -0.34868854,
+                0.36279172,
+                0.6702148,
+                -0.7840319,
+                0.15747465,
+                -0.13836148,
+                0.026649835,
+                0.0989235,
+                -0.56692386,
+                0.29328933,
+            ],
+            [
+                -0.4864714,
+                0.5240101,
+                -0.34868854,
+                0.36279172,
+                0.6702148,
+                -0.7840319,
+                0.15747465,
+                -0.13836148,
+                0.026649835,
+                0.0989235,
+                -0.56692386,
+                0.29328933,
+            ],
+            [
+                -0.4864714,
+                0.5240101,
+                -0.34868854,
+                0.36279172,
+                0.6702148,
+                -0.7840319,
+                0.15747465,
+                -0.13836148,
+                0.026649835,
+                0.0989235,
+                -0.56692386,
+                0.29328933,
+            ],
+            [
+                -0.4864714,
+                0.5240101,
+                -0.34868854,
+                0.36279172,
+                0.6702148,
+                -0.7840319,
+                0.15747465,
+                -0.13836148,
+                0.026649835,
+                0.0989235,
+                -0.56692386,
+                0.29328933,
+            ],
         ],
-        cl_offset: -0.0133969085,
+        cl_offset: [
+            -0.07317764,
+            -0.02330083,
+            -0.0077806055,
+            -0.0077806055,
+            -0.0077806055,
+            -0.0077806055,
+            -0.0077806055,
+            -0.0077806055,
+        ],
     },
-    fusion: FusionParams { rho: 0.9512294, gain: 0.000104245715 },
+    fusion: FusionParams { rho: 0.9512294, gain: 0.0010300385 },
     plant: [
         PlantParams {
             slow_pole: 0.99004984,
@@ -647,21 +746,21 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
     ],
     coupling: SparseModel {
         terms: [
-            Term { coeff: 15.652937, monomial: Monomial { factors: [0, 1, 6], gate_mask: 40 } },
-            Term { coeff: -10.500791, monomial: Monomial { factors: [0, 3, 6], gate_mask: 40 } },
-            Term { coeff: 0.2884736, monomial: Monomial { factors: [1, 2, 6], gate_mask: 40 } },
-            Term { coeff: 0.092373736, monomial: Monomial { factors: [1, 5, 6], gate_mask: 40 } },
-            Term { coeff: -2214.7786, monomial: Monomial { factors: [0, 1, 1], gate_mask: 40 } },
-            Term { coeff: 2333.8367, monomial: Monomial { factors: [0, 1, 3], gate_mask: 40 } },
-            Term { coeff: 15.584706, monomial: Monomial { factors: [0, 2, 3], gate_mask: 40 } },
-            Term { coeff: -589.26184, monomial: Monomial { factors: [1, 1, 1], gate_mask: 40 } },
-            Term { coeff: -81.24646, monomial: Monomial { factors: [1, 1, 2], gate_mask: 40 } },
-            Term { coeff: 1554.0625, monomial: Monomial { factors: [1, 1, 3], gate_mask: 40 } },
-            Term { coeff: -53.195786, monomial: Monomial { factors: [1, 1, 5], gate_mask: 40 } },
-            Term { coeff: -0.40823844, monomial: Monomial { factors: [1, 2, 2], gate_mask: 40 } },
-            Term { coeff: 78.28412, monomial: Monomial { factors: [1, 2, 3], gate_mask: 40 } },
-            Term { coeff: -1073.0068, monomial: Monomial { factors: [1, 3, 3], gate_mask: 40 } },
-            Term { coeff: 47.077286, monomial: Monomial { factors: [1, 3, 5], gate_mask: 40 } },
+            Term { coeff: 14.795124, monomial: Monomial { factors: [0, 1, 6], gate_mask: 40 } },
+            Term { coeff: -9.912067, monomial: Monomial { factors: [0, 3, 6], gate_mask: 40 } },
+            Term { coeff: 0.34045827, monomial: Monomial { factors: [1, 2, 6], gate_mask: 40 } },
+            Term { coeff: 0.07049554, monomial: Monomial { factors: [1, 5, 6], gate_mask: 40 } },
+            Term { coeff: -2021.3927, monomial: Monomial { factors: [0, 1, 1], gate_mask: 40 } },
+            Term { coeff: 2158.842, monomial: Monomial { factors: [0, 1, 3], gate_mask: 40 } },
+            Term { coeff: 15.259676, monomial: Monomial { factors: [0, 2, 3], gate_mask: 40 } },
+            Term { coeff: -410.64096, monomial: Monomial { factors: [1, 1, 1], gate_mask: 40 } },
+            Term { coeff: -90.698784, monomial: Monomial { factors: [1, 1, 2], gate_mask: 40 } },
+            Term { coeff: 1476.4155, monomial: Monomial { factors: [1, 1, 3], gate_mask: 40 } },
+            Term { coeff: -47.512703, monomial: Monomial { factors: [1, 1, 5], gate_mask: 40 } },
+            Term { coeff: -0.78462607, monomial: Monomial { factors: [1, 2, 2], gate_mask: 40 } },
+            Term { coeff: 83.48942, monomial: Monomial { factors: [1, 2, 3], gate_mask: 40 } },
+            Term { coeff: -1158.4639, monomial: Monomial { factors: [1, 3, 3], gate_mask: 40 } },
+            Term { coeff: 42.630417, monomial: Monomial { factors: [1, 3, 5], gate_mask: 40 } },
             Term { coeff: 0.0, monomial: Monomial { factors: [6, 6, 6], gate_mask: 0 } },
         ],
         n_terms: 15,
@@ -728,49 +827,49 @@ pub(super) fn plant_starboard(x: &[f32; MAX_VARS]) -> f32 {
 pub(super) fn coupling(x: &[f32; MAX_VARS]) -> f32 {
     let mut sum = -0.0f32;
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += 15.652937f32 * x[0] * x[1];
+        sum += 14.795124f32 * x[0] * x[1];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += -10.500791f32 * x[0] * x[3];
+        sum += -9.912067f32 * x[0] * x[3];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += 0.2884736f32 * x[1] * x[2];
+        sum += 0.34045827f32 * x[1] * x[2];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += 0.092373736f32 * x[1] * x[5];
+        sum += 0.07049554f32 * x[1] * x[5];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += -2214.7786f32 * x[0] * x[1] * x[1];
+        sum += -2021.3927f32 * x[0] * x[1] * x[1];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += 2333.8367f32 * x[0] * x[1] * x[3];
+        sum += 2158.842f32 * x[0] * x[1] * x[3];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += 15.584706f32 * x[0] * x[2] * x[3];
+        sum += 15.259676f32 * x[0] * x[2] * x[3];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += -589.26184f32 * x[1] * x[1] * x[1];
+        sum += -410.64096f32 * x[1] * x[1] * x[1];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += -81.24646f32 * x[1] * x[1] * x[2];
+        sum += -90.698784f32 * x[1] * x[1] * x[2];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += 1554.0625f32 * x[1] * x[1] * x[3];
+        sum += 1476.4155f32 * x[1] * x[1] * x[3];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += -53.195786f32 * x[1] * x[1] * x[5];
+        sum += -47.512703f32 * x[1] * x[1] * x[5];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += -0.40823844f32 * x[1] * x[2] * x[2];
+        sum += -0.78462607f32 * x[1] * x[2] * x[2];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += 78.28412f32 * x[1] * x[2] * x[3];
+        sum += 83.48942f32 * x[1] * x[2] * x[3];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += -1073.0068f32 * x[1] * x[3] * x[3];
+        sum += -1158.4639f32 * x[1] * x[3] * x[3];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += 47.077286f32 * x[1] * x[3] * x[5];
+        sum += 42.630417f32 * x[1] * x[3] * x[5];
     }
     sum
 }

@@ -17,7 +17,7 @@ pub use compiled::{BUILT_IN, CompiledDefault};
 pub use generated::DEFAULT;
 
 /// Version of the coefficient-set layout. Bump it whenever a field or a size changes.
-pub const SCHEMA_VERSION: u16 = 3;
+pub const SCHEMA_VERSION: u16 = 4;
 
 /// Number of upper-surface pressure taps.
 pub const N_TAPS: usize = 12;
@@ -176,10 +176,13 @@ pub struct PressureModel {
     pub gate_sigma: f32,
     /// Consecutive rejections after which a channel is isolated as faulty.
     pub isolate_after: u16,
-    /// Map from filtered pressures to C_l.
-    pub cl_weights: [f32; N_TAPS],
-    /// Offset of that map.
-    pub cl_offset: f32,
+    /// Map from filtered pressures to C_l at each breakpoint of the set's alpha schedule
+    /// (`crate::schedule`; interpolated between them). One map for all alphas errs twice as
+    /// much: the vortex suction that the taps see changes its share of the roll moment with
+    /// alpha.
+    pub cl_weights: [[f32; N_TAPS]; N_ALPHA],
+    /// Offset of that map at each breakpoint.
+    pub cl_offset: [f32; N_ALPHA],
 }
 
 /// The fusion filter (domain-models.md section 4, design B): the error of the eGK estimate is

@@ -11,7 +11,7 @@
 
 use std::ops::Range;
 
-use estimator_core::coeffs::N_TAPS;
+use estimator_core::coeffs::{N_ALPHA, N_TAPS};
 use estimator_core::plant::Plant;
 use estimator_core::{CoefficientSet, Estimator, Input};
 use firmware_sim::dataset::{Dataset, Run, RunKind};
@@ -250,7 +250,10 @@ fn innovations(run: &Run, set: &CoefficientSet, phi_rad: &[f64], cmu: &[Vec<f64>
     let model = PressureModelF64 {
         gate_sigma: GATE_SIGMA,
         isolate_after: u16::MAX,
-        ..PressureModelF64::from_core(&set.pressure)
+        ..PressureModelF64::from_core(
+            &set.pressure,
+            &set.alpha_schedule_deg[..usize::from(set.n_alpha).clamp(1, N_ALPHA)],
+        )
     };
     let (phi_dot, _) = differentiate(phi_rad, &set.rate_filter, dt_s);
     let mut filter = PressureFilterF64::new(&model);
@@ -258,7 +261,8 @@ fn innovations(run: &Run, set: &CoefficientSet, phi_rad: &[f64], cmu: &[Vec<f64>
     for idx in 0..run.channels.len() {
         let inputs = [phi_rad[idx], phi_dot[idx], cmu[0][idx], cmu[1][idx], 1.0];
         let cp: [f64; N_TAPS] = std::array::from_fn(|tap| run.channels.cp[tap][idx]);
-        let step = filter.step(&model, &inputs, &cp);
+        // Only the innovations are used: the map to C_l (and so alpha) does not matter here.
+        let step = filter.step(&model, &inputs, &cp, run.meta.alpha_deg);
         for (tap, channel) in out.iter_mut().enumerate() {
             channel.push(if cp[tap].is_finite() { cp[tap] - step.predicted_cp[tap] } else { f64::NAN });
         }

@@ -150,7 +150,7 @@ pub fn fit_dataset(dataset: &Dataset, config: &FitConfig, progress: Progress<'_>
 
     let clock = Instant::now();
     progress("pressure model (time-shifted DMDc, DARE, map to C_l)");
-    let pressure = fit_pressure(dataset, &signals, config)?;
+    let pressure = fit_pressure(dataset, &signals, config, &set)?;
     set.pressure = pressure.model;
     timing.push(("pressure".to_owned(), clock.elapsed().as_secs_f64()));
 
@@ -309,13 +309,17 @@ fn pressure_runs<'a>(
         .collect()
 }
 
+/// The pressure path, its map to `C_l` tabulated at the alpha schedule of `set` (the eGK's).
 fn fit_pressure(
     dataset: &Dataset,
     signals: &[RunSignals],
     config: &FitConfig,
+    set: &CoefficientSet,
 ) -> Result<super::pressure::PressureFit, FitError> {
     let runs = pressure_runs(dataset, signals, &config.split)?;
-    Ok(fit_pressure_model(&runs, &config.pressure)?)
+    let n_alpha = usize::from(set.n_alpha).clamp(1, N_ALPHA);
+    let breakpoints: Vec<f64> = set.alpha_schedule_deg[..n_alpha].iter().map(|&deg| f64::from(deg)).collect();
+    Ok(fit_pressure_model(&runs, &config.pressure, &breakpoints)?)
 }
 
 /// Fusion on the training part of the roll runs, from the f64 eGK and pressure path.

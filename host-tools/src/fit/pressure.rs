@@ -36,7 +36,7 @@
 
 use std::ops::Range;
 
-use estimator_core::coeffs::{N_PRESSURE_INPUTS, N_TAPS, PRESSURE_RANK, PressureModel};
+use estimator_core::coeffs::{N_ALPHA, N_PRESSURE_INPUTS, N_TAPS, PRESSURE_RANK, PressureModel};
 use firmware_sim::dataset::Channels;
 use nalgebra::{Cholesky, DMatrix, DVector, SVD, Schur};
 use rayon::prelude::*;
@@ -88,6 +88,8 @@ pub struct PressureRun<'a> {
     pub cp: [&'a [f64]; N_TAPS],
     /// Measured roll-moment coefficient.
     pub cl: &'a [f64],
+    /// Angle of attack, deg (it picks the map to `C_l` in the alpha schedule).
+    pub alpha_deg: &'a [f64],
     /// True for the runs whose `cl` is the disturbance moment alone (roll runs without
     /// blowing): only these fit the map to `C_l`.
     pub disturbance: bool,
@@ -119,6 +121,7 @@ impl<'a> PressureRun<'a> {
             cmu: [slice(&signals.cmu[0])?, slice(&signals.cmu[1])?],
             cp,
             cl: slice(&channels.cl)?,
+            alpha_deg: slice(&signals.alpha_deg)?,
             disturbance,
         })
     }
@@ -151,7 +154,7 @@ impl<'a> PressureRun<'a> {
         let expected = self.len();
         let named = [("phi_dot_rad_s", self.phi_dot_rad_s), ("cmu_port", self.cmu[0]), ("cmu_stbd", self.cmu[1])];
         let taps = self.cp.iter().map(|cp| ("cp", *cp));
-        for (channel, values) in named.into_iter().chain(taps).chain([("cl", self.cl)]) {
+        for (channel, values) in named.into_iter().chain(taps).chain([("cl", self.cl), ("alpha_deg", self.alpha_deg)]) {
             if values.len() != expected {
                 return Err(PressureFitError::LengthMismatch { run, channel, len: values.len(), expected });
             }
@@ -230,10 +233,68 @@ pub struct PressureModelF64 {
     pub gate_sigma: f64,
     /// Consecutive rejections after which a channel is isolated.
     pub isolate_after: u16,
-    /// Map from filtered pressures to `C_l`.
-    pub cl_weights: [f64; N_TAPS],
-    /// Offset of that map.
-    pub cl_offset: f64,
+    /// Map from filtered pressures to `C_l`, scheduled on alpha.
+    pub cl_map: ClSchedule,
+}
+
+/// The map from filtered pressures to `C_l` at each breakpoint of the alpha schedule,
+/// interpolated between them and held outside, as the core does
+/// (`estimator_core::schedule`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ClSchedule {
+    /// Breakpoints, deg, ascending (at least one).
+    pub breakpoints_deg: Vec<f64>,
+    /// Weights of the taps at each breakpoint.
+    pub weights: Vec<[f64; N_TAPS]>,
+    /// Offset at each breakpoint.
+    pub offsets: Vec<f64>,
+}
+
+impl ClSchedule {
+    /// One map for every alpha (breakpoint 0 deg).
+    #[must_use]
+    pub fn constant(weights: [f64; N_TAPS], offset: f64) -> Self {
+        Self { breakpoints_deg: vec![0.0], weights: vec![weights], offsets: vec![offset] }
+    }
+
+    /// `C_l` of the filtered pressures at `alpha_deg`: each neighbouring breakpoint's map, then
+    /// linear interpolation of the two values (the core's order).
+    #[must_use]
+    pub fn cl(&self, filtered_cp: &[f64; N_TAPS], alpha_deg: f64) -> f64 {
+        let map = |idx: usize| {
+            let idx = idx.min(self.weights.len().saturating_sub(1));
+            let (Some(weights), Some(offset)) = (self.weights.get(idx), self.offsets.get(idx)) else {
+                return f64::NAN;
+            };
+            weights.iter().zip(filtered_cp).map(|(w, cp)| w * cp).sum::<f64>() + offset
+        };
+        let (lower, upper, weight) = schedule_position(&self.breakpoints_deg, alpha_deg);
+        let low = map(lower);
+        if weight == 0.0 { low } else { low + weight * (map(upper) - low) }
+    }
+}
+
+/// The two breakpoints around `alpha_deg` and the upper one's weight
+/// (`estimator_core::schedule::position` in f64).
+fn schedule_position(breakpoints_deg: &[f64], alpha_deg: f64) -> (usize, usize, f64) {
+    let n = breakpoints_deg.len().max(1);
+    let upper = breakpoints_deg.iter().position(|&breakpoint| breakpoint > alpha_deg).unwrap_or(n);
+    if upper == 0 {
+        return (0, 0, 0.0);
+    }
+    if upper >= breakpoints_deg.len() {
+        return (n - 1, n - 1, 0.0);
+    }
+    let (low_deg, high_deg) = (breakpoints_deg[upper - 1], breakpoints_deg[upper]);
+    let span = high_deg - low_deg;
+    (upper - 1, upper, if span > 0.0 { (alpha_deg - low_deg) / span } else { 0.0 })
+}
+
+/// The breakpoint nearest to `alpha_deg` (the first of a tie).
+fn nearest_breakpoint(breakpoints_deg: &[f64], alpha_deg: f64) -> usize {
+    (0..breakpoints_deg.len())
+        .min_by(|&a, &b| (breakpoints_deg[a] - alpha_deg).abs().total_cmp(&(breakpoints_deg[b] - alpha_deg).abs()))
+        .unwrap_or(0)
 }
 
 impl PressureModelF64 {
@@ -272,16 +333,24 @@ impl PressureModelF64 {
             innovation_std: self.innovation_std.map(|value| value as f32),
             gate_sigma: self.gate_sigma as f32,
             isolate_after: self.isolate_after,
-            cl_weights: self.cl_weights.map(|value| value as f32),
-            cl_offset: self.cl_offset as f32,
+            cl_weights: std::array::from_fn(|idx| {
+                let last = self.cl_map.weights.len().saturating_sub(1);
+                self.cl_map.weights.get(idx.min(last)).map_or([0.0; N_TAPS], |weights| weights.map(|w| w as f32))
+            }),
+            cl_offset: std::array::from_fn(|idx| {
+                let last = self.cl_map.offsets.len().saturating_sub(1);
+                self.cl_map.offsets.get(idx.min(last)).map_or(0.0, |&offset| offset as f32)
+            }),
         };
         core_is_finite(&model).then_some(model).ok_or(PressureFitError::NonFinite("pressure model in f32"))
     }
 
     /// The core's table in f64 (its first `rank` modes), to run the host reference filter on a
-    /// fitted or loaded coefficient set.
+    /// fitted or loaded coefficient set whose alpha schedule is `breakpoints_deg` (the set's
+    /// first `n_alpha` breakpoints).
     #[must_use]
-    pub fn from_core(model: &PressureModel) -> Self {
+    pub fn from_core(model: &PressureModel, breakpoints_deg: &[f32]) -> Self {
+        let n = breakpoints_deg.len().clamp(1, N_ALPHA);
         let rank = usize::from(model.rank).min(PRESSURE_RANK);
         Self {
             a: DMatrix::from_fn(rank, rank, |row, col| f64::from(model.a[row][col])),
@@ -292,15 +361,20 @@ impl PressureModelF64 {
             innovation_std: model.innovation_std.map(f64::from),
             gate_sigma: f64::from(model.gate_sigma),
             isolate_after: model.isolate_after,
-            cl_weights: model.cl_weights.map(f64::from),
-            cl_offset: f64::from(model.cl_offset),
+            cl_map: ClSchedule {
+                breakpoints_deg: (0..n)
+                    .map(|idx| breakpoints_deg.get(idx).map_or(0.0, |&deg| f64::from(deg)))
+                    .collect(),
+                weights: model.cl_weights[..n].iter().map(|weights| weights.map(f64::from)).collect(),
+                offsets: model.cl_offset[..n].iter().map(|&offset| f64::from(offset)).collect(),
+            },
         }
     }
 }
 
 /// Every f32 of a pressure table is finite.
 fn core_is_finite(model: &PressureModel) -> bool {
-    let scalars = [model.gate_sigma, model.cl_offset];
+    let scalars = [model.gate_sigma];
     model
         .a
         .as_flattened()
@@ -310,7 +384,8 @@ fn core_is_finite(model: &PressureModel) -> bool {
         .chain(&model.cp_mean)
         .chain(model.gain.as_flattened())
         .chain(&model.innovation_std)
-        .chain(&model.cl_weights)
+        .chain(model.cl_weights.as_flattened())
+        .chain(&model.cl_offset)
         .chain(&scalars)
         .all(|value| value.is_finite())
 }
@@ -426,6 +501,7 @@ pub enum PressureFitError {
 pub fn fit_pressure_model(
     runs: &[PressureRun<'_>],
     config: &PressureFitConfig,
+    breakpoints_deg: &[f64],
 ) -> Result<PressureFit, PressureFitError> {
     check_config(config)?;
     for (idx, run) in runs.iter().enumerate() {
@@ -439,9 +515,8 @@ pub fn fit_pressure_model(
     let base = untuned_model(&pod, &dynamics, config);
     let tuned = tune_filter(runs, base, &dynamics.residual_cov, &noise_variance, config)?;
     let mut model_f64 = tuned.model;
-    let map = fit_cl_map(runs, &model_f64, config)?;
-    model_f64.cl_weights = map.weights;
-    model_f64.cl_offset = map.offset;
+    let map = fit_cl_map(runs, &model_f64, config, breakpoints_deg)?;
+    model_f64.cl_map = map.schedule;
     let model = model_f64.to_core()?;
     let report = PressureFitReport {
         rank: pod.rank,
@@ -476,8 +551,7 @@ fn untuned_model(pod: &Pod, dynamics: &Dynamics, config: &PressureFitConfig) -> 
         innovation_std: [1.0; N_TAPS],
         gate_sigma: config.gate_sigma,
         isolate_after: config.isolate_after,
-        cl_weights: [0.0; N_TAPS],
-        cl_offset: 0.0,
+        cl_map: ClSchedule::constant([0.0; N_TAPS], 0.0),
     }
 }
 
@@ -889,7 +963,7 @@ fn score_cp(
         let mut inputs = HeldInputs::default();
         for k in 0..run.len() {
             let cp = run.cp_at(k);
-            let step = filter.step(model, &inputs.hold(run.inputs(k)), &cp);
+            let step = filter.step(model, &inputs.hold(run.inputs(k)), &cp, run.alpha_deg[k]);
             if k < warmup {
                 continue;
             }
@@ -909,23 +983,25 @@ fn score_cp(
 }
 
 /// The map `C_l,p = w . Cp_filtered + w0` and its training fit.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 struct ClMap {
-    weights: [f64; N_TAPS],
-    offset: f64,
+    schedule: ClSchedule,
     rms: f64,
     cl_std: f64,
     n_samples: usize,
 }
 
-/// Ridge least squares of `cl` on the filtered pressures of the disturbance runs (step 8).
+/// Ridge least squares of `cl` on the filtered pressures of the disturbance runs (step 8), one
+/// map per breakpoint of the alpha schedule from the samples nearest to it. A breakpoint
+/// without enough samples of its own takes the map of the nearest breakpoint that has them.
 fn fit_cl_map(
     runs: &[PressureRun<'_>],
     model: &PressureModelF64,
     config: &PressureFitConfig,
+    breakpoints_deg: &[f64],
 ) -> Result<ClMap, PressureFitError> {
-    let (rows, targets) = cl_samples(runs, model, config.warmup_samples);
-    let n_samples = targets.len();
+    let samples = cl_samples(runs, model, config.warmup_samples);
+    let n_samples = samples.targets.len();
     if n_samples <= N_TAPS + 1 {
         return Err(PressureFitError::TooFewSamples {
             stage: "C_l map (disturbance runs)",
@@ -933,17 +1009,52 @@ fn fit_cl_map(
             needed: N_TAPS + 2,
         });
     }
-    let (weights, offset) = ridge_regression(&rows, &targets, config.ridge)?;
+    let breakpoints: Vec<f64> = if breakpoints_deg.is_empty() { vec![0.0] } else { breakpoints_deg.to_vec() };
+    let group: Vec<usize> = samples.alpha_deg.iter().map(|&alpha| nearest_breakpoint(&breakpoints, alpha)).collect();
+    let mut maps: Vec<Option<([f64; N_TAPS], f64)>> = Vec::with_capacity(breakpoints.len());
+    for idx in 0..breakpoints.len() {
+        let members: Vec<usize> = (0..n_samples).filter(|&row| group[row] == idx).collect();
+        if members.len() <= N_TAPS + 1 {
+            maps.push(None);
+            continue;
+        }
+        let rows: Vec<[f64; N_TAPS]> = members.iter().map(|&row| samples.rows[row]).collect();
+        let targets: Vec<f64> = members.iter().map(|&row| samples.targets[row]).collect();
+        maps.push(Some(ridge_regression(&rows, &targets, config.ridge)?));
+    }
+    let fitted: Vec<usize> = (0..maps.len()).filter(|&idx| maps[idx].is_some()).collect();
+    if fitted.is_empty() {
+        // No breakpoint has enough samples of its own: one map from all of them.
+        let map = ridge_regression(&samples.rows, &samples.targets, config.ridge)?;
+        maps = vec![Some(map); breakpoints.len()];
+    } else {
+        for idx in 0..maps.len() {
+            if maps[idx].is_none() {
+                let nearest = fitted
+                    .iter()
+                    .copied()
+                    .min_by(|&a, &b| {
+                        (breakpoints[a] - breakpoints[idx]).abs().total_cmp(&(breakpoints[b] - breakpoints[idx]).abs())
+                    })
+                    .unwrap_or(fitted[0]);
+                maps[idx] = maps[nearest];
+            }
+        }
+    }
+    let (weights, offsets): (Vec<[f64; N_TAPS]>, Vec<f64>) = maps.into_iter().flatten().unzip();
+    let schedule = ClSchedule { breakpoints_deg: breakpoints, weights, offsets };
     let n = n_samples as f64;
-    let predict = |row: &[f64; N_TAPS]| weights.iter().zip(row).map(|(w, x)| w * x).sum::<f64>() + offset;
-    let sq_error: f64 = rows.iter().zip(&targets).map(|(row, y)| (y - predict(row)).powi(2)).sum();
-    let y_mean = targets.iter().sum::<f64>() / n;
-    let cl_std = (targets.iter().map(|y| (y - y_mean).powi(2)).sum::<f64>() / n).sqrt();
+    let sq_error: f64 = (0..n_samples)
+        .map(|row| (samples.targets[row] - schedule.cl(&samples.rows[row], samples.alpha_deg[row])).powi(2))
+        .sum();
+    let y_mean = samples.targets.iter().sum::<f64>() / n;
+    let cl_std = (samples.targets.iter().map(|y| (y - y_mean).powi(2)).sum::<f64>() / n).sqrt();
     let rms = (sq_error / n).sqrt();
-    if !(rms.is_finite() && offset.is_finite() && weights.iter().all(|w| w.is_finite())) {
+    let finite = schedule.weights.iter().flatten().chain(&schedule.offsets).all(|value| value.is_finite());
+    if !(rms.is_finite() && finite) {
         return Err(PressureFitError::NonFinite("C_l map"));
     }
-    Ok(ClMap { weights, offset, rms, cl_std, n_samples })
+    Ok(ClMap { schedule, rms, cl_std, n_samples })
 }
 
 /// `y ~ w . x + w0` by ridge regression (Hoerl & Kennard 1970): the columns are centred and
@@ -981,32 +1092,43 @@ fn solve_spd(matrix: DMatrix<f64>, rhs: &DVector<f64>) -> Result<DVector<f64>, P
         .ok_or(PressureFitError::Decomposition("Cholesky factorisation of the C_l normal equations"))
 }
 
-/// The filtered pressures and measured `cl` of every disturbance-run sample after the warm-up
-/// where `cl` is finite.
-fn cl_samples(runs: &[PressureRun<'_>], model: &PressureModelF64, warmup: usize) -> (Vec<[f64; N_TAPS]>, Vec<f64>) {
-    let per_run: Vec<(Vec<[f64; N_TAPS]>, Vec<f64>)> = runs
+/// The filtered pressures, measured `cl` and alpha of every disturbance-run sample after the
+/// warm-up where `cl` is finite.
+struct ClSamples {
+    rows: Vec<[f64; N_TAPS]>,
+    targets: Vec<f64>,
+    alpha_deg: Vec<f64>,
+}
+
+fn cl_samples(runs: &[PressureRun<'_>], model: &PressureModelF64, warmup: usize) -> ClSamples {
+    let per_run: Vec<ClSamples> = runs
         .par_iter()
         .filter(|run| run.disturbance)
         .map(|run| {
-            let mut rows = Vec::with_capacity(run.len());
-            let mut targets = Vec::with_capacity(run.len());
+            let mut samples =
+                ClSamples { rows: Vec::with_capacity(run.len()), targets: Vec::new(), alpha_deg: Vec::new() };
             let mut filter = PressureFilterF64::new(model);
             let mut inputs = HeldInputs::default();
             for k in 0..run.len() {
-                let step = filter.step(model, &inputs.hold(run.inputs(k)), &run.cp_at(k));
+                let step = filter.step(model, &inputs.hold(run.inputs(k)), &run.cp_at(k), run.alpha_deg[k]);
                 if k >= warmup && run.cl[k].is_finite() {
-                    rows.push(step.filtered_cp);
-                    targets.push(run.cl[k]);
+                    samples.rows.push(step.filtered_cp);
+                    samples.targets.push(run.cl[k]);
+                    samples.alpha_deg.push(run.alpha_deg[k]);
                 }
             }
-            (rows, targets)
+            samples
         })
         .collect();
-    per_run.into_iter().fold((Vec::new(), Vec::new()), |(mut rows, mut targets), (run_rows, run_targets)| {
-        rows.extend(run_rows);
-        targets.extend(run_targets);
-        (rows, targets)
-    })
+    per_run.into_iter().fold(
+        ClSamples { rows: Vec::new(), targets: Vec::new(), alpha_deg: Vec::new() },
+        |mut all, run| {
+            all.rows.extend(run.rows);
+            all.targets.extend(run.targets);
+            all.alpha_deg.extend(run.alpha_deg);
+            all
+        },
+    )
 }
 
 /// The inputs the core would see: a non-finite input holds its last finite value (zero before
@@ -1044,7 +1166,7 @@ pub struct PressureFilterF64 {
 /// Result of one f64 filter step.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PressureStepF64 {
-    /// `C_l,p = w . (C a + cp_mean) + w0`.
+    /// `C_l,p = w(alpha) . (C a + cp_mean) + w0(alpha)`.
     pub cl: f64,
     /// True when at least one channel corrected the prediction.
     pub measured: bool,
@@ -1070,13 +1192,14 @@ impl PressureFilterF64 {
     /// Predicts `a_pred = A a + B u`, forms the innovations `Cp - (C a_pred + cp_mean)` of the
     /// finite taps, gates them at `gate_sigma * innovation_std` (all pass when none does),
     /// updates streaks and isolation, applies `a = a_pred + K nu` with the used channels, resets
-    /// a state beyond the core's limit, and maps the state to `C_l,p`
-    /// (`estimator_core::pressure::PressureFilter::step`).
+    /// a state beyond the core's limit, and maps the state to `C_l,p` with the map at
+    /// `alpha_deg` (`estimator_core::pressure::PressureFilter::step`).
     pub fn step(
         &mut self,
         model: &PressureModelF64,
         inputs: &[f64; N_PRESSURE_INPUTS],
         cp: &[f64; N_TAPS],
+        alpha_deg: f64,
     ) -> PressureStepF64 {
         let predicted = &model.a * &self.modes + &model.b * DVector::from_row_slice(inputs);
         let predicted_cp = output(model, &predicted);
@@ -1105,7 +1228,7 @@ impl PressureFilterF64 {
             self.modes.fill(0.0);
         }
         let filtered_cp = output(model, &self.modes);
-        let cl = model.cl_weights.iter().zip(&filtered_cp).map(|(w, cp)| w * cp).sum::<f64>() + model.cl_offset;
+        let cl = model.cl_map.cl(&filtered_cp, alpha_deg);
         PressureStepF64 { cl, measured: used_mask != 0, predicted_cp, filtered_cp }
     }
 
@@ -1147,7 +1270,9 @@ pub fn run_pressure_filter(model: &PressureModelF64, run: &PressureRun<'_>) -> R
     run.check(0)?;
     let mut filter = PressureFilterF64::new(model);
     let mut inputs = HeldInputs::default();
-    Ok((0..run.len()).map(|k| filter.step(model, &inputs.hold(run.inputs(k)), &run.cp_at(k)).cl).collect())
+    Ok((0..run.len())
+        .map(|k| filter.step(model, &inputs.hold(run.inputs(k)), &run.cp_at(k), run.alpha_deg[k]).cl)
+        .collect())
 }
 
 #[cfg(test)]
@@ -1206,6 +1331,7 @@ mod tests {
         cmu: [Vec<f64>; 2],
         cp: [Vec<f64>; N_TAPS],
         cl: Vec<f64>,
+        alpha_deg: Vec<f64>,
     }
 
     impl SyntheticRun {
@@ -1215,7 +1341,8 @@ mod tests {
                 phi_dot_rad_s: &self.phi_dot_rad_s[range.clone()],
                 cmu: [&self.cmu[0][range.clone()], &self.cmu[1][range.clone()]],
                 cp: std::array::from_fn(|tap| &self.cp[tap][range.clone()]),
-                cl: &self.cl[range],
+                cl: &self.cl[range.clone()],
+                alpha_deg: &self.alpha_deg[range],
                 disturbance,
             }
         }
@@ -1260,7 +1387,8 @@ mod tests {
                 values.push(clean[tap] + NOISE_STD * noise.normal());
             }
         }
-        SyntheticRun { phi_rad, phi_dot_rad_s, cmu, cp, cl }
+        let alpha_deg = vec![0.0; cl.len()];
+        SyntheticRun { phi_rad, phi_dot_rad_s, cmu, cp, cl, alpha_deg }
     }
 
     /// Two roll runs (disturbance) and one roll-and-blowing run; the first 80 % of each trains.
@@ -1281,7 +1409,7 @@ mod tests {
                 (simulate(&system, 33, true), false),
             ];
             let views: Vec<PressureRun<'_>> = runs.iter().map(|(run, dist)| run.view(0..TRAINING, *dist)).collect();
-            let fit = fit_pressure_model(&views, &PressureFitConfig::default()).unwrap();
+            let fit = fit_pressure_model(&views, &PressureFitConfig::default(), &[0.0]).unwrap();
             Fixture { runs, fit }
         })
     }
@@ -1301,7 +1429,7 @@ mod tests {
             let mut errors = Vec::new();
             let mut deviations = Vec::new();
             for k in 0..RUN_SAMPLES {
-                let step = filter.step(model, &view.inputs(k), &view.cp_at(k));
+                let step = filter.step(model, &view.inputs(k), &view.cp_at(k), 0.0);
                 if k >= TRAINING {
                     errors.extend((0..N_TAPS).map(|tap| run.cp[tap][k] - step.predicted_cp[tap]));
                     deviations.extend((0..N_TAPS).map(|tap| run.cp[tap][k] - model.cp_mean[tap]));
@@ -1349,7 +1477,7 @@ mod tests {
         set.pressure = fit.model;
         estimator_core::blob::validate(&set).unwrap();
         assert_eq!(usize::from(fit.model.rank), fit.report.rank);
-        assert_eq!(PressureModelF64::from_core(&fit.model).to_core().unwrap(), fit.model);
+        assert_eq!(PressureModelF64::from_core(&fit.model, &[0.0]).to_core().unwrap(), fit.model);
         // A model of rank 3 fills only its modes; everything past them is exactly zero.
         let full = &fit.model_f64;
         let truncated = PressureModelF64 {
@@ -1385,7 +1513,13 @@ mod tests {
         for (k, expected) in reference.iter().enumerate() {
             let inputs = [run.phi_rad[k], run.phi_dot_rad_s[k], run.cmu[0][k], run.cmu[1][k], 1.0].map(|v| v as f32);
             let cp: [f32; N_TAPS] = std::array::from_fn(|tap| run.cp[tap][k] as f32);
-            let estimate = core.step(model, &inputs, &cp, &mut Health::default());
+            let estimate = core.step(
+                model,
+                estimator_core::schedule::SchedulePosition::FIRST,
+                &inputs,
+                &cp,
+                &mut Health::default(),
+            );
             worst = worst.max((f64::from(estimate.cl) - expected).abs());
         }
         let scale = fixture.fit.report.cl_std;
@@ -1411,7 +1545,7 @@ mod tests {
         }
         run.cp[3][5_000..5_300].fill(f64::NAN);
         let view = run.view(0..TRAINING, true);
-        let fit = fit_pressure_model(&[view], &PressureFitConfig::default()).unwrap();
+        let fit = fit_pressure_model(&[view], &PressureFitConfig::default(), &[0.0]).unwrap();
         let truth = NOISE_STD * NOISE_STD;
         assert!(fit.report.noise_variance.iter().all(|variance| (variance / truth - 1.0).abs() < 0.2));
         assert!(fit.report.n_snapshots < TRAINING - 15);
@@ -1419,6 +1553,54 @@ mod tests {
         assert!(cl.iter().all(|value| value.is_finite()));
         let error = rms((TRAINING..RUN_SAMPLES).filter(|&k| run.cl[k].is_finite()).map(|k| cl[k] - run.cl[k]));
         assert!(error < 0.1 * fit.report.cl_std, "{error} vs {}", fit.report.cl_std);
+    }
+
+    /// Two angles of attack whose pressures follow the same dynamics but map to `C_l`
+    /// differently (as vortex suction does): the map scheduled on alpha recovers both, one
+    /// map for both cannot.
+    #[test]
+    fn map_to_cl_is_scheduled_on_alpha() {
+        let low = system();
+        let mut high = system();
+        let mut noise = Noise(0x5eed_0a1f);
+        high.weights = std::array::from_fn(|_| 0.05 * noise.normal());
+        high.offset = -0.02;
+        let mut runs = [simulate(&low, 71, false), simulate(&high, 72, false)];
+        runs[1].alpha_deg.fill(10.0);
+        let training: Vec<PressureRun<'_>> = runs.iter().map(|run| run.view(0..TRAINING, true)).collect();
+        let heldout_error = |breakpoints: &[f64]| {
+            let fit = fit_pressure_model(&training, &PressureFitConfig::default(), breakpoints).unwrap();
+            runs.iter()
+                .map(|run| {
+                    let cl = run_pressure_filter(&fit.model_f64, &run.view(0..RUN_SAMPLES, true)).unwrap();
+                    let error = rms((TRAINING..RUN_SAMPLES).map(|k| cl[k] - run.cl[k]));
+                    let spread = rms((TRAINING..RUN_SAMPLES).map(|k| run.cl[k] - run.cl[TRAINING]));
+                    error / spread
+                })
+                .fold(0.0f64, f64::max)
+        };
+        let scheduled = heldout_error(&[0.0, 10.0]);
+        let single = heldout_error(&[0.0]);
+        assert!(scheduled < 0.15, "scheduled map: worst relative error {scheduled}");
+        assert!(single > 3.0 * scheduled, "one map {single} vs scheduled {scheduled}");
+    }
+
+    #[test]
+    fn schedule_interpolates_between_breakpoints_and_holds_outside() {
+        let map = ClSchedule {
+            breakpoints_deg: vec![0.0, 10.0, 20.0],
+            weights: vec![[1.0; N_TAPS], [2.0; N_TAPS], [4.0; N_TAPS]],
+            offsets: vec![0.0, 1.0, 2.0],
+        };
+        let cp = [0.5; N_TAPS];
+        let at = |alpha: f64| map.cl(&cp, alpha);
+        assert_eq!(at(-5.0), 6.0);
+        assert_eq!(at(0.0), 6.0);
+        assert_eq!(at(5.0), 0.5 * (6.0 + 13.0));
+        assert_eq!(at(20.0), 26.0);
+        assert_eq!(at(35.0), 26.0);
+        assert_eq!(nearest_breakpoint(&map.breakpoints_deg, 14.0), 1);
+        assert_eq!(nearest_breakpoint(&map.breakpoints_deg, 16.0), 2);
     }
 
     #[test]
@@ -1483,6 +1665,7 @@ mod tests {
             cmu: [&zeros, &zeros],
             cp,
             cl: &zeros,
+            alpha_deg: &zeros,
             disturbance: false,
         };
         let reduced = ReducedRun { coords, samples: (0..n).collect() };
@@ -1496,12 +1679,12 @@ mod tests {
         let fixture = fixture();
         let view = fixture.runs[0].0.view(0..1_000, true);
         let bad = PressureFitConfig { max_spectral_radius: 1.0, ..PressureFitConfig::default() };
-        assert!(matches!(fit_pressure_model(&[view], &bad), Err(PressureFitError::InvalidConfig(_))));
+        assert!(matches!(fit_pressure_model(&[view], &bad, &[0.0]), Err(PressureFitError::InvalidConfig(_))));
         let bad = PressureFitConfig { q_scales: vec![], ..PressureFitConfig::default() };
-        assert!(matches!(fit_pressure_model(&[view], &bad), Err(PressureFitError::InvalidConfig(_))));
+        assert!(matches!(fit_pressure_model(&[view], &bad, &[0.0]), Err(PressureFitError::InvalidConfig(_))));
         let short = PressureRun { cl: &view.cl[..10], ..view };
         assert!(matches!(
-            fit_pressure_model(&[short], &PressureFitConfig::default()),
+            fit_pressure_model(&[short], &PressureFitConfig::default(), &[0.0]),
             Err(PressureFitError::LengthMismatch { channel: "cl", .. })
         ));
         assert!(run_pressure_filter(&fixture.fit.model_f64, &short).is_err());
