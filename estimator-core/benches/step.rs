@@ -73,6 +73,7 @@ fn stages(c: &mut Criterion) {
             let mut health = Health::default();
             black_box(pressure.step(
                 &set.pressure,
+                black_box(estimator_core::schedule::SchedulePosition { lower: 0, upper: 1, weight: 0.5 }),
                 black_box(&[0.1, 0.2, 0.003, 0.0, 1.0]),
                 black_box(&cp),
                 &mut health,
