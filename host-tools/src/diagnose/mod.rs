@@ -312,6 +312,8 @@ pub fn diagnose(
         })
         .collect();
     let own_signature = Signature {
+        // A channel without data (a dead tap in the fitted recording) explains nothing and has
+        // no noise: its NaN is left out, and a missing key reads as zero.
         explained_to_noise: first_round
             .iter()
             .map(|p| (p.candidate.name().to_owned(), to_noise(p.explained())))
@@ -321,6 +323,7 @@ pub fn diagnose(
                     f.explained.min(1e12) / f.noise_var.max(f64::MIN_POSITIVE),
                 )
             }))
+            .filter(|(_, value)| value.is_finite())
             .collect(),
         probe_to_noise: probe_base,
         gap_to_noise_by_kind: gap_by_kind,

@@ -186,6 +186,14 @@ fn pressure_section(md: &mut String, report: &FitReport) {
         p.cl_rms,
         p.cl_std
     );
+    if !p.dead_taps.is_empty() {
+        let names: Vec<String> = p.dead_taps.iter().map(|tap| format!("cp{tap:02}")).collect();
+        let _ = writeln!(
+            md,
+            "Taps without data in at least half of the training samples, fitted as absent (zero row of C, zero column of K): {}.\n",
+            names.join(", ")
+        );
+    }
 }
 
 fn sparse_section(md: &mut String, lhs: &str, fit: &SparseFit, plot: &str) {

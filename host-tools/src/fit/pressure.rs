@@ -427,6 +427,9 @@ pub struct PressureFitReport {
     pub n_dynamics_samples: usize,
     /// Samples of the `C_l` map fit.
     pub n_cl_samples: usize,
+    /// Taps (1-based, `cpNN`) with finite data in fewer than half of the training samples,
+    /// fitted as absent.
+    pub dead_taps: Vec<usize>,
 }
 
 /// A fitted pressure path: the core's table, the same model in f64, and the report.
@@ -487,6 +490,9 @@ pub enum PressureFitError {
     /// A fitted value is not finite.
     #[error("non-finite value in the {0}")]
     NonFinite(&'static str),
+    /// No tap has data in at least half of the training samples.
+    #[error("no pressure tap has data in at least half of the training samples")]
+    NoPressureData,
     /// An f64 model's shapes do not make a core table.
     #[error("the pressure model cannot become a core table: {0}")]
     InvalidModel(&'static str),
@@ -507,15 +513,53 @@ pub fn fit_pressure_model(
     for (idx, run) in runs.iter().enumerate() {
         run.check(idx)?;
     }
+    // A tap without data (a blocked tube, a dead scanner port) would leave no snapshot in
+    // which every tap is finite: it is fitted as a constant zero instead, so its row of `C`
+    // and its column of `K` come out exactly zero and the filter neither predicts nor uses it.
+    let dead = dead_taps(runs);
+    if dead.iter().all(|&is_dead| is_dead) {
+        return Err(PressureFitError::NoPressureData);
+    }
+    let zeros: Vec<Vec<f64>> = runs.iter().map(|run| vec![0.0; run.len()]).collect();
+    let filled: Vec<PressureRun<'_>> = runs
+        .iter()
+        .zip(&zeros)
+        .map(|(run, zeros)| {
+            let mut run = *run;
+            for (cp, _) in run.cp.iter_mut().zip(&dead).filter(|(_, is_dead)| **is_dead) {
+                *cp = zeros;
+            }
+            run
+        })
+        .collect();
+    let runs = &filled[..];
     let embedding = Embedding { delays: config.delays, spacing: config.delay_spacing };
     let pod = Pod::fit(runs, &embedding, config.energy_fraction)?;
     let reduced: Vec<ReducedRun> = runs.par_iter().map(|run| pod.reduce(run, &embedding)).collect();
     let dynamics = Dynamics::fit(runs, &reduced, config.max_spectral_radius)?;
-    let noise_variance = noise_variance(runs)?;
+    let mut noise_variance = noise_variance(runs)?;
+    // A dead tap's zero has no noise; the median of the live taps keeps its gate ordinary
+    // should it carry data in a later recording (its gain column is zero either way).
+    let mut live: Vec<f64> = (0..N_TAPS).filter(|&tap| !dead[tap]).map(|tap| noise_variance[tap]).collect();
+    let typical = median(&mut live);
+    for (variance, _) in noise_variance.iter_mut().zip(&dead).filter(|(_, is_dead)| **is_dead) {
+        *variance = typical;
+    }
     let base = untuned_model(&pod, &dynamics, config);
     let tuned = tune_filter(runs, base, &dynamics.residual_cov, &noise_variance, config)?;
     let mut model_f64 = tuned.model;
-    let map = fit_cl_map(runs, &model_f64, config, breakpoints_deg)?;
+    // The eigen-solver leaves round-off where a dead tap's row of `C` is zero in exact
+    // arithmetic; make it exact, and its gain column with it.
+    for tap in (0..N_TAPS).filter(|&tap| dead[tap]) {
+        model_f64.c.row_mut(tap).fill(0.0);
+        model_f64.gain.column_mut(tap).fill(0.0);
+    }
+    let mut map = fit_cl_map(runs, &model_f64, config, breakpoints_deg)?;
+    for weights in &mut map.schedule.weights {
+        for (weight, _) in weights.iter_mut().zip(&dead).filter(|(_, is_dead)| **is_dead) {
+            *weight = 0.0;
+        }
+    }
     model_f64.cl_map = map.schedule;
     let model = model_f64.to_core()?;
     let report = PressureFitReport {
@@ -536,6 +580,7 @@ pub fn fit_pressure_model(
         n_snapshots: pod.n_snapshots,
         n_dynamics_samples: dynamics.n_samples,
         n_cl_samples: map.n_samples,
+        dead_taps: (0..N_TAPS).filter(|&tap| dead[tap]).map(|tap| tap + 1).collect(),
     };
     Ok(PressureFit { model, model_f64, report })
 }
@@ -865,6 +910,15 @@ fn noise_variance(runs: &[PressureRun<'_>]) -> Result<[f64; N_TAPS], PressureFit
         *out = estimate.max(MIN_NOISE_VARIANCE);
     }
     Ok(variance)
+}
+
+/// Taps with finite readings in fewer than half of the runs' samples.
+fn dead_taps(runs: &[PressureRun<'_>]) -> [bool; N_TAPS] {
+    let total: usize = runs.iter().map(PressureRun::len).sum();
+    std::array::from_fn(|tap| {
+        let finite: usize = runs.iter().map(|run| run.cp[tap].iter().filter(|value| value.is_finite()).count()).sum();
+        2 * finite < total
+    })
 }
 
 /// The median (upper median for an even count) of a non-empty slice, reordering it.
@@ -1583,6 +1637,30 @@ mod tests {
         let single = heldout_error(&[0.0]);
         assert!(scheduled < 0.15, "scheduled map: worst relative error {scheduled}");
         assert!(single > 3.0 * scheduled, "one map {single} vs scheduled {scheduled}");
+    }
+
+    /// A tap with no data at all (a blocked tube) is fitted as absent: the fit does not fail
+    /// for want of snapshots, the tap's row of `C` and column of `K` are exactly zero, and the
+    /// other taps still carry the map to `C_l`.
+    #[test]
+    fn a_tap_without_data_is_fitted_as_absent() {
+        let system = system();
+        let mut run = simulate(&system, 91, true);
+        run.cp[3].fill(f64::NAN);
+        let view = run.view(0..TRAINING, true);
+        let fit = fit_pressure_model(&[view], &PressureFitConfig::default(), &[0.0]).unwrap();
+        assert_eq!(fit.report.dead_taps, vec![4]);
+        assert!(fit.model.c[3].iter().all(|&value| value == 0.0));
+        assert!(fit.model.gain.iter().all(|row| row[3] == 0.0));
+        let cl = run_pressure_filter(&fit.model_f64, &run.view(0..RUN_SAMPLES, true)).unwrap();
+        let error = rms((TRAINING..RUN_SAMPLES).map(|k| cl[k] - run.cl[k]));
+        assert!(error < 0.2 * fit.report.cl_std, "{error} vs {}", fit.report.cl_std);
+        let mut silent = simulate(&system, 92, true);
+        for tap in &mut silent.cp {
+            tap.fill(f64::NAN);
+        }
+        let none = fit_pressure_model(&[silent.view(0..TRAINING, true)], &PressureFitConfig::default(), &[0.0]);
+        assert!(matches!(none, Err(PressureFitError::NoPressureData)));
     }
 
     #[test]
