@@ -17,6 +17,7 @@
 //! step `k` already responds to the input of step `k`.
 
 use crate::coeffs::{CoefficientSet, EgkParams, N_ALPHA};
+use crate::schedule::SchedulePosition;
 
 /// Exact zero-order-hold update of `tau x' + x = x0` over one step: `x0 + (x - x0) decay`
 /// with `decay = exp(-dt / tau)`.
@@ -37,7 +38,11 @@ pub fn breakdown_curve(params: &EgkParams, incidence_deg: f32) -> f32 {
 /// held constant outside them.
 #[must_use]
 pub fn params_at(set: &CoefficientSet, alpha_deg: f32) -> EgkParams {
-    let at = crate::schedule::position(set, alpha_deg);
+    params_from(set, crate::schedule::position(set, alpha_deg))
+}
+
+/// The eGK parameters at a position in the schedule.
+fn params_from(set: &CoefficientSet, at: SchedulePosition) -> EgkParams {
     let low = &set.egk[at.lower.min(N_ALPHA - 1)];
     if at.weight == 0.0 {
         return *low;
@@ -111,6 +116,8 @@ pub struct Egk {
     vortex: [f32; 2],
     primed: bool,
     cached_alpha_deg: f32,
+    /// Where the cached alpha lies in the schedule (the pressure path's map uses it too).
+    at: SchedulePosition,
     params: EgkParams,
     decay: f32,
     sin_alpha: f32,
@@ -138,6 +145,7 @@ impl Egk {
             vortex: [1.0; 2],
             primed: false,
             cached_alpha_deg: f32::NAN,
+            at: SchedulePosition::FIRST,
             params: EgkParams {
                 tau1_s: 1.0,
                 tau2_s: 0.0,
@@ -155,6 +163,13 @@ impl Egk {
             sin_alpha: 0.0,
             tan_alpha: 0.0,
         }
+    }
+
+    /// Where the alpha of the last step lies in the schedule: computed when alpha changes, so
+    /// the estimator's other scheduled stage does not search the schedule every step.
+    #[must_use]
+    pub const fn schedule_position(&self) -> SchedulePosition {
+        self.at
     }
 
     /// The flow states (port, starboard).
@@ -198,7 +213,8 @@ impl Egk {
             return;
         }
         self.cached_alpha_deg = alpha_deg;
-        self.params = params_at(set, alpha_deg);
+        self.at = crate::schedule::position(set, alpha_deg);
+        self.params = params_from(set, self.at);
         let tau1_s = crate::max_num(self.params.tau1_s, 1e-6);
         self.decay = crate::exp::exp(-set.dt_s / tau1_s);
         let alpha_rad = alpha_deg.to_radians();

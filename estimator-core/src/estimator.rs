@@ -218,7 +218,7 @@ impl<'a, E: SparseEval> Estimator<'a, E> {
         let rates = limit_rates(self.rates.step(&set.rate_filter, self.rate_hz, phi_rad), &mut health);
         let (cl_egk, egk_reset) = self.egk.step(set, &self.egk_input(phi_rad, &rates));
         let pressure_inputs = self.pressure_inputs(phi_rad, &rates);
-        let at = crate::schedule::position(set, self.held.alpha_deg);
+        let at = self.egk.schedule_position();
         let pressure = self.pressure.step(&set.pressure, at, &pressure_inputs, &input.cp, &mut health);
         if !pressure.measured {
             health.set(Health::PRESSURE_UNUSED);

@@ -52,6 +52,7 @@ impl Plant {
     /// Returns `C_l,AFC[k]` and advances to `k + 1` with this step's Cmu; the second value is
     /// true when the state diverged and was reset.
     pub fn step(&mut self, params: &PlantParams, cmu: f32, alpha_rad: f32) -> (f32, bool) {
+        // `Interpreted` reads `params` whatever the id says.
         self.step_with(Interpreted, ModelId::PlantPort, params, cmu, alpha_rad)
     }
 

@@ -75,13 +75,6 @@ impl Monomial {
         in_range && self.factors.windows(2).all(|pair| pair[0] <= pair[1])
     }
 
-    /// Product of the factors and gates in f32, in factor order.
-    #[must_use]
-    pub fn eval(&self, vars: &[f32; MAX_VARS], gate_threshold: &[f32; MAX_VARS]) -> f32 {
-        let model = SparseModel::single(Term { coeff: 1.0, monomial: *self }, gate_threshold);
-        model.eval(vars)
-    }
-
     /// Product of the factors and gates in f64 (the host's reference evaluation).
     #[must_use]
     pub fn eval_f64(&self, vars: &[f64; MAX_VARS], gate_threshold: &[f32; MAX_VARS]) -> f64 {
@@ -140,13 +133,6 @@ impl SparseModel {
     pub fn active_terms(&self) -> &[Term] {
         let n_terms = usize::from(self.n_terms).min(MAX_TERMS);
         &self.terms[..n_terms]
-    }
-
-    /// A model of one term (for evaluating a single monomial).
-    const fn single(term: Term, gate_threshold: &[f32; MAX_VARS]) -> Self {
-        let mut terms = [Term::ZERO; MAX_TERMS];
-        terms[0] = term;
-        Self { terms, n_terms: 1, gate_threshold: *gate_threshold }
     }
 
     /// Evaluates the model in f32 (the core's arithmetic).
