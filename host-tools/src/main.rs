@@ -307,7 +307,7 @@ fn diagnose(args: DiagnoseArgs) -> anyhow::Result<()> {
     }
     let signature = Some(own_signature.unwrap_or_else(host_tools::diagnose::default_signature));
     let config = DiagnoseConfig {
-        split: host_tools::fit::split::Split { holdout_fraction: args.holdout_fraction },
+        split: host_tools::fit::split::Split::with_holdout(args.holdout_fraction),
         signature,
         heldout_only: false,
     };
@@ -436,7 +436,7 @@ fn fit(args: FitArgs) -> anyhow::Result<()> {
     let started = Instant::now();
     let dataset = firmware_sim::dataset::load_dataset(&args.data)?;
     let config = host_tools::fit::pipeline::FitConfig {
-        split: host_tools::fit::split::Split { holdout_fraction: args.holdout_fraction },
+        split: host_tools::fit::split::Split::with_holdout(args.holdout_fraction),
         ..Default::default()
     };
     let spinner = ProgressBar::new_spinner();
@@ -544,7 +544,7 @@ fn evaluate(args: EvaluateArgs) -> anyhow::Result<()> {
     let started = Instant::now();
     let dataset = firmware_sim::dataset::load_dataset(&args.data)?;
     let (set, source) = host_tools::model::load(args.model.as_deref())?;
-    let split = host_tools::fit::split::Split { holdout_fraction: args.holdout_fraction };
+    let split = host_tools::fit::split::Split::with_holdout(args.holdout_fraction);
     let config = EvaluationConfig { split, seed: args.seed, ..EvaluationConfig::default() };
     let spinner = spinner("evaluating: replay, tables, noise sweep".into());
     let (evaluation, replayed) = evaluate(&dataset, &set, &config)?;
@@ -771,7 +771,7 @@ fn faults(args: FaultsArgs) -> anyhow::Result<()> {
     let started = Instant::now();
     let dataset = firmware_sim::dataset::load_dataset(&args.data)?;
     let (set, source) = host_tools::model::load(args.model.as_deref())?;
-    let split = host_tools::fit::split::Split { holdout_fraction: args.holdout_fraction };
+    let split = host_tools::fit::split::Split::with_holdout(args.holdout_fraction);
     let config = StudyConfig { split, seed: args.seed, ..StudyConfig::default() };
     let spinner = spinner("injecting faults".into());
     let study = fault_study(&dataset, &set, &config)?;

@@ -116,3 +116,31 @@ fn five_angles_of_attack_get_five_breakpoints() {
     assert_eq!(outcome.set.n_alpha, 5);
     assert_eq!(&outcome.set.alpha_schedule_deg[..5], &[0.0, 5.0, 10.0, 15.0, 20.0]);
 }
+
+/// The held-out part of every run never reaches the fit: neither the coefficients nor the
+/// choice of a sparse model's terms, slow pole or gates. Replacing every held-out measurement
+/// and input with different values must leave the fitted blob byte for byte the same.
+#[test]
+fn the_held_out_part_does_not_reach_the_fit() {
+    let dataset = short(&[RunKind::Roll, RunKind::Actuation, RunKind::RollActuation]);
+    let config = FitConfig::default();
+    let fit = |dataset: &firmware_sim::dataset::Dataset| {
+        let outcome = fit_dataset(dataset, &config, &|_| {}).expect("fits");
+        host_tools::model::encode(&outcome.set).expect("encodes")
+    };
+    let clean = fit(&dataset);
+    let mut altered = dataset.clone();
+    for run in &mut altered.runs {
+        let channels = &mut run.channels;
+        for k in config.split.heldout(channels.len()) {
+            let wobble = (k as f64 * 0.37).sin();
+            channels.cl[k] = -3.0 * channels.cl[k] + 0.02 * wobble;
+            channels.phi_deg[k] += 5.0 * wobble;
+            channels.cmu_port[k] *= 1.5;
+            for tap in &mut channels.cp {
+                tap[k] += 0.3 * wobble;
+            }
+        }
+    }
+    assert!(fit(&altered) == clean, "a held-out sample changed the fit");
+}

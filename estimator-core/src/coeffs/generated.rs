@@ -698,19 +698,19 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
                 terms: [
                     Term { coeff: 0.9522405, monomial: Monomial { factors: [0, 6, 6], gate_mask: 0 } },
                     Term { coeff: 0.13134484, monomial: Monomial { factors: [1, 6, 6], gate_mask: 0 } },
-                    Term { coeff: 2.3539707e-5, monomial: Monomial { factors: [3, 6, 6], gate_mask: 0 } },
-                    Term { coeff: -1.1871004, monomial: Monomial { factors: [0, 1, 6], gate_mask: 0 } },
-                    Term { coeff: 0.09701266, monomial: Monomial { factors: [0, 3, 6], gate_mask: 0 } },
-                    Term { coeff: -12.634288, monomial: Monomial { factors: [1, 1, 6], gate_mask: 0 } },
-                    Term { coeff: 0.07221177, monomial: Monomial { factors: [1, 3, 6], gate_mask: 0 } },
-                    Term { coeff: -7.933953e-5, monomial: Monomial { factors: [3, 3, 6], gate_mask: 0 } },
-                    Term { coeff: -2.2119155, monomial: Monomial { factors: [1, 1, 3], gate_mask: 0 } },
-                    Term { coeff: -0.35991332, monomial: Monomial { factors: [1, 3, 3], gate_mask: 0 } },
-                    Term { coeff: -0.16400301, monomial: Monomial { factors: [0, 3, 3], gate_mask: 0 } },
-                    Term { coeff: 2.6323197, monomial: Monomial { factors: [0, 1, 3], gate_mask: 0 } },
+                    Term { coeff: 2.3539716e-5, monomial: Monomial { factors: [3, 6, 6], gate_mask: 0 } },
+                    Term { coeff: -1.1870997, monomial: Monomial { factors: [0, 1, 6], gate_mask: 0 } },
+                    Term { coeff: 0.09701265, monomial: Monomial { factors: [0, 3, 6], gate_mask: 0 } },
+                    Term { coeff: -12.634289, monomial: Monomial { factors: [1, 1, 6], gate_mask: 0 } },
+                    Term { coeff: 0.0722118, monomial: Monomial { factors: [1, 3, 6], gate_mask: 0 } },
+                    Term { coeff: -7.933955e-5, monomial: Monomial { factors: [3, 3, 6], gate_mask: 0 } },
+                    Term { coeff: -2.2119124, monomial: Monomial { factors: [1, 1, 3], gate_mask: 0 } },
+                    Term { coeff: -0.35991338, monomial: Monomial { factors: [1, 3, 3], gate_mask: 0 } },
+                    Term { coeff: -0.16400297, monomial: Monomial { factors: [0, 3, 3], gate_mask: 0 } },
+                    Term { coeff: 2.6323154, monomial: Monomial { factors: [0, 1, 3], gate_mask: 0 } },
                     Term { coeff: 657.2904, monomial: Monomial { factors: [1, 1, 1], gate_mask: 0 } },
-                    Term { coeff: -0.005039553, monomial: Monomial { factors: [4, 6, 6], gate_mask: 0 } },
-                    Term { coeff: -0.039638113, monomial: Monomial { factors: [3, 4, 6], gate_mask: 0 } },
+                    Term { coeff: -0.0050395546, monomial: Monomial { factors: [4, 6, 6], gate_mask: 0 } },
+                    Term { coeff: -0.039638106, monomial: Monomial { factors: [3, 4, 6], gate_mask: 0 } },
                     Term { coeff: 0.0, monomial: Monomial { factors: [6, 6, 6], gate_mask: 0 } },
                 ],
                 n_terms: 15,
@@ -724,19 +724,19 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
                 terms: [
                     Term { coeff: 0.9522405, monomial: Monomial { factors: [0, 6, 6], gate_mask: 0 } },
                     Term { coeff: -0.13134484, monomial: Monomial { factors: [1, 6, 6], gate_mask: 0 } },
-                    Term { coeff: -2.3539707e-5, monomial: Monomial { factors: [3, 6, 6], gate_mask: 0 } },
-                    Term { coeff: -1.1871004, monomial: Monomial { factors: [0, 1, 6], gate_mask: 0 } },
-                    Term { coeff: 0.09701266, monomial: Monomial { factors: [0, 3, 6], gate_mask: 0 } },
-                    Term { coeff: 12.634288, monomial: Monomial { factors: [1, 1, 6], gate_mask: 0 } },
-                    Term { coeff: -0.07221177, monomial: Monomial { factors: [1, 3, 6], gate_mask: 0 } },
-                    Term { coeff: 7.933953e-5, monomial: Monomial { factors: [3, 3, 6], gate_mask: 0 } },
-                    Term { coeff: 2.2119155, monomial: Monomial { factors: [1, 1, 3], gate_mask: 0 } },
-                    Term { coeff: 0.35991332, monomial: Monomial { factors: [1, 3, 3], gate_mask: 0 } },
-                    Term { coeff: -0.16400301, monomial: Monomial { factors: [0, 3, 3], gate_mask: 0 } },
-                    Term { coeff: 2.6323197, monomial: Monomial { factors: [0, 1, 3], gate_mask: 0 } },
+                    Term { coeff: -2.3539716e-5, monomial: Monomial { factors: [3, 6, 6], gate_mask: 0 } },
+                    Term { coeff: -1.1870997, monomial: Monomial { factors: [0, 1, 6], gate_mask: 0 } },
+                    Term { coeff: 0.09701265, monomial: Monomial { factors: [0, 3, 6], gate_mask: 0 } },
+                    Term { coeff: 12.634289, monomial: Monomial { factors: [1, 1, 6], gate_mask: 0 } },
+                    Term { coeff: -0.0722118, monomial: Monomial { factors: [1, 3, 6], gate_mask: 0 } },
+                    Term { coeff: 7.933955e-5, monomial: Monomial { factors: [3, 3, 6], gate_mask: 0 } },
+                    Term { coeff: 2.2119124, monomial: Monomial { factors: [1, 1, 3], gate_mask: 0 } },
+                    Term { coeff: 0.35991338, monomial: Monomial { factors: [1, 3, 3], gate_mask: 0 } },
+                    Term { coeff: -0.16400297, monomial: Monomial { factors: [0, 3, 3], gate_mask: 0 } },
+                    Term { coeff: 2.6323154, monomial: Monomial { factors: [0, 1, 3], gate_mask: 0 } },
                     Term { coeff: -657.2904, monomial: Monomial { factors: [1, 1, 1], gate_mask: 0 } },
-                    Term { coeff: -0.005039553, monomial: Monomial { factors: [4, 6, 6], gate_mask: 0 } },
-                    Term { coeff: -0.039638113, monomial: Monomial { factors: [3, 4, 6], gate_mask: 0 } },
+                    Term { coeff: -0.0050395546, monomial: Monomial { factors: [4, 6, 6], gate_mask: 0 } },
+                    Term { coeff: -0.039638106, monomial: Monomial { factors: [3, 4, 6], gate_mask: 0 } },
                     Term { coeff: -0.0, monomial: Monomial { factors: [6, 6, 6], gate_mask: 0 } },
                 ],
                 n_terms: 15,
@@ -746,21 +746,21 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
     ],
     coupling: SparseModel {
         terms: [
-            Term { coeff: 14.795124, monomial: Monomial { factors: [0, 1, 6], gate_mask: 40 } },
-            Term { coeff: -9.912067, monomial: Monomial { factors: [0, 3, 6], gate_mask: 40 } },
-            Term { coeff: 0.34045827, monomial: Monomial { factors: [1, 2, 6], gate_mask: 40 } },
-            Term { coeff: 0.07049554, monomial: Monomial { factors: [1, 5, 6], gate_mask: 40 } },
-            Term { coeff: -2021.3927, monomial: Monomial { factors: [0, 1, 1], gate_mask: 40 } },
-            Term { coeff: 2158.842, monomial: Monomial { factors: [0, 1, 3], gate_mask: 40 } },
-            Term { coeff: 15.259676, monomial: Monomial { factors: [0, 2, 3], gate_mask: 40 } },
-            Term { coeff: -410.64096, monomial: Monomial { factors: [1, 1, 1], gate_mask: 40 } },
-            Term { coeff: -90.698784, monomial: Monomial { factors: [1, 1, 2], gate_mask: 40 } },
+            Term { coeff: 14.795137, monomial: Monomial { factors: [0, 1, 6], gate_mask: 40 } },
+            Term { coeff: -9.912079, monomial: Monomial { factors: [0, 3, 6], gate_mask: 40 } },
+            Term { coeff: 0.34045875, monomial: Monomial { factors: [1, 2, 6], gate_mask: 40 } },
+            Term { coeff: 0.07049563, monomial: Monomial { factors: [1, 5, 6], gate_mask: 40 } },
+            Term { coeff: -2021.3958, monomial: Monomial { factors: [0, 1, 1], gate_mask: 40 } },
+            Term { coeff: 2158.8455, monomial: Monomial { factors: [0, 1, 3], gate_mask: 40 } },
+            Term { coeff: 15.259662, monomial: Monomial { factors: [0, 2, 3], gate_mask: 40 } },
+            Term { coeff: -410.6412, monomial: Monomial { factors: [1, 1, 1], gate_mask: 40 } },
+            Term { coeff: -90.698845, monomial: Monomial { factors: [1, 1, 2], gate_mask: 40 } },
             Term { coeff: 1476.4155, monomial: Monomial { factors: [1, 1, 3], gate_mask: 40 } },
-            Term { coeff: -47.512703, monomial: Monomial { factors: [1, 1, 5], gate_mask: 40 } },
-            Term { coeff: -0.78462607, monomial: Monomial { factors: [1, 2, 2], gate_mask: 40 } },
-            Term { coeff: 83.48942, monomial: Monomial { factors: [1, 2, 3], gate_mask: 40 } },
-            Term { coeff: -1158.4639, monomial: Monomial { factors: [1, 3, 3], gate_mask: 40 } },
-            Term { coeff: 42.630417, monomial: Monomial { factors: [1, 3, 5], gate_mask: 40 } },
+            Term { coeff: -47.512726, monomial: Monomial { factors: [1, 1, 5], gate_mask: 40 } },
+            Term { coeff: -0.7846272, monomial: Monomial { factors: [1, 2, 2], gate_mask: 40 } },
+            Term { coeff: 83.48944, monomial: Monomial { factors: [1, 2, 3], gate_mask: 40 } },
+            Term { coeff: -1158.4629, monomial: Monomial { factors: [1, 3, 3], gate_mask: 40 } },
+            Term { coeff: 42.63043, monomial: Monomial { factors: [1, 3, 5], gate_mask: 40 } },
             Term { coeff: 0.0, monomial: Monomial { factors: [6, 6, 6], gate_mask: 0 } },
         ],
         n_terms: 15,
@@ -782,19 +782,19 @@ pub(super) fn plant_port(x: &[f32; MAX_VARS]) -> f32 {
     let mut sum = -0.0f32;
     sum += 0.9522405f32 * x[0];
     sum += 0.13134484f32 * x[1];
-    sum += 2.3539707e-5f32 * x[3];
-    sum += -1.1871004f32 * x[0] * x[1];
-    sum += 0.09701266f32 * x[0] * x[3];
-    sum += -12.634288f32 * x[1] * x[1];
-    sum += 0.07221177f32 * x[1] * x[3];
-    sum += -7.933953e-5f32 * x[3] * x[3];
-    sum += -2.2119155f32 * x[1] * x[1] * x[3];
-    sum += -0.35991332f32 * x[1] * x[3] * x[3];
-    sum += -0.16400301f32 * x[0] * x[3] * x[3];
-    sum += 2.6323197f32 * x[0] * x[1] * x[3];
+    sum += 2.3539716e-5f32 * x[3];
+    sum += -1.1870997f32 * x[0] * x[1];
+    sum += 0.09701265f32 * x[0] * x[3];
+    sum += -12.634289f32 * x[1] * x[1];
+    sum += 0.0722118f32 * x[1] * x[3];
+    sum += -7.933955e-5f32 * x[3] * x[3];
+    sum += -2.2119124f32 * x[1] * x[1] * x[3];
+    sum += -0.35991338f32 * x[1] * x[3] * x[3];
+    sum += -0.16400297f32 * x[0] * x[3] * x[3];
+    sum += 2.6323154f32 * x[0] * x[1] * x[3];
     sum += 657.2904f32 * x[1] * x[1] * x[1];
-    sum += -0.005039553f32 * x[4];
-    sum += -0.039638113f32 * x[3] * x[4];
+    sum += -0.0050395546f32 * x[4];
+    sum += -0.039638106f32 * x[3] * x[4];
     sum
 }
 
@@ -805,19 +805,19 @@ pub(super) fn plant_starboard(x: &[f32; MAX_VARS]) -> f32 {
     let mut sum = -0.0f32;
     sum += 0.9522405f32 * x[0];
     sum += -0.13134484f32 * x[1];
-    sum += -2.3539707e-5f32 * x[3];
-    sum += -1.1871004f32 * x[0] * x[1];
-    sum += 0.09701266f32 * x[0] * x[3];
-    sum += 12.634288f32 * x[1] * x[1];
-    sum += -0.07221177f32 * x[1] * x[3];
-    sum += 7.933953e-5f32 * x[3] * x[3];
-    sum += 2.2119155f32 * x[1] * x[1] * x[3];
-    sum += 0.35991332f32 * x[1] * x[3] * x[3];
-    sum += -0.16400301f32 * x[0] * x[3] * x[3];
-    sum += 2.6323197f32 * x[0] * x[1] * x[3];
+    sum += -2.3539716e-5f32 * x[3];
+    sum += -1.1870997f32 * x[0] * x[1];
+    sum += 0.09701265f32 * x[0] * x[3];
+    sum += 12.634289f32 * x[1] * x[1];
+    sum += -0.0722118f32 * x[1] * x[3];
+    sum += 7.933955e-5f32 * x[3] * x[3];
+    sum += 2.2119124f32 * x[1] * x[1] * x[3];
+    sum += 0.35991338f32 * x[1] * x[3] * x[3];
+    sum += -0.16400297f32 * x[0] * x[3] * x[3];
+    sum += 2.6323154f32 * x[0] * x[1] * x[3];
     sum += -657.2904f32 * x[1] * x[1] * x[1];
-    sum += -0.005039553f32 * x[4];
-    sum += -0.039638113f32 * x[3] * x[4];
+    sum += -0.0050395546f32 * x[4];
+    sum += -0.039638106f32 * x[3] * x[4];
     sum
 }
 
@@ -827,49 +827,49 @@ pub(super) fn plant_starboard(x: &[f32; MAX_VARS]) -> f32 {
 pub(super) fn coupling(x: &[f32; MAX_VARS]) -> f32 {
     let mut sum = -0.0f32;
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += 14.795124f32 * x[0] * x[1];
+        sum += 14.795137f32 * x[0] * x[1];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += -9.912067f32 * x[0] * x[3];
+        sum += -9.912079f32 * x[0] * x[3];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += 0.34045827f32 * x[1] * x[2];
+        sum += 0.34045875f32 * x[1] * x[2];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += 0.07049554f32 * x[1] * x[5];
+        sum += 0.07049563f32 * x[1] * x[5];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += -2021.3927f32 * x[0] * x[1] * x[1];
+        sum += -2021.3958f32 * x[0] * x[1] * x[1];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += 2158.842f32 * x[0] * x[1] * x[3];
+        sum += 2158.8455f32 * x[0] * x[1] * x[3];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += 15.259676f32 * x[0] * x[2] * x[3];
+        sum += 15.259662f32 * x[0] * x[2] * x[3];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += -410.64096f32 * x[1] * x[1] * x[1];
+        sum += -410.6412f32 * x[1] * x[1] * x[1];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += -90.698784f32 * x[1] * x[1] * x[2];
+        sum += -90.698845f32 * x[1] * x[1] * x[2];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
         sum += 1476.4155f32 * x[1] * x[1] * x[3];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += -47.512703f32 * x[1] * x[1] * x[5];
+        sum += -47.512726f32 * x[1] * x[1] * x[5];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += -0.78462607f32 * x[1] * x[2] * x[2];
+        sum += -0.7846272f32 * x[1] * x[2] * x[2];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += 83.48942f32 * x[1] * x[2] * x[3];
+        sum += 83.48944f32 * x[1] * x[2] * x[3];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += -1158.4639f32 * x[1] * x[3] * x[3];
+        sum += -1158.4629f32 * x[1] * x[3] * x[3];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += 42.630417f32 * x[1] * x[3] * x[5];
+        sum += 42.63043f32 * x[1] * x[3] * x[5];
     }
     sum
 }

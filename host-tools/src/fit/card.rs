@@ -61,7 +61,7 @@ fn sweep_plots(report: &FitReport) -> Vec<(String, String)> {
     let mut plots = Vec::new();
     for (side, name) in [(0usize, "port"), (1, "starboard")] {
         if let Some(fit) = &report.plant[side] {
-            let error = |row: &super::sparse_fit::SweepRow| row.heldout_free_run_rms.unwrap_or(f64::NAN);
+            let error = |row: &super::sparse_fit::SweepRow| row.validation_free_run_rms.unwrap_or(f64::NAN);
             plots.push((
                 format!("plant_{name}_sweep.svg"),
                 sweep_svg(&format!("plant ({name} jet): lambda sweep"), fit, "held-out free-run RMS of C_l", &error),
@@ -69,7 +69,7 @@ fn sweep_plots(report: &FitReport) -> Vec<(String, String)> {
         }
     }
     if let Some(fit) = &report.coupling {
-        let error = |row: &super::sparse_fit::SweepRow| row.heldout_one_step_rms;
+        let error = |row: &super::sparse_fit::SweepRow| row.validation_one_step_rms;
         plots.push((
             "coupling_sweep.svg".into(),
             sweep_svg("coupling operator: lambda sweep", fit, "held-out RMS of the correction error", &error),
@@ -200,14 +200,14 @@ fn sparse_section(md: &mut String, lhs: &str, fit: &SparseFit, plot: &str) {
     let rhs: Vec<String> = fit.terms.iter().map(|(name, c)| format!("{c:+.6e} {name}")).collect();
     let _ = writeln!(md, "`{lhs} = {}`\n", if rhs.is_empty() { "0".to_owned() } else { rhs.join(" ") });
     if let Some(row) = fit.selected_row() {
-        let free_run = row.heldout_free_run_rms.map_or(String::new(), |fr| format!(", free run {fr:.3e}"));
+        let free_run = row.validation_free_run_rms.map_or(String::new(), |fr| format!(", free run {fr:.3e}"));
         let _ = writeln!(
             md,
-            "{} terms selected from {} distinct sweep models by BIC with {} effective held-out samples; held-out RMS: one step {:.3e}{free_run}; {} training samples.\n\n![sweep]({plot})\n",
+            "{} terms selected from {} distinct sweep models by BIC with {} effective validation samples (the end of the training part); validation RMS: one step {:.3e}{free_run}; refitted on {} training samples.\n\n![sweep]({plot})\n",
             row.n_terms,
             fit.sweep.len(),
-            row.heldout_effective_samples,
-            row.heldout_one_step_rms,
+            row.validation_effective_samples,
+            row.validation_one_step_rms,
             fit.n_train
         );
     }

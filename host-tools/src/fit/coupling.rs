@@ -20,7 +20,9 @@ use estimator_core::coeffs::coupling_var;
 use estimator_core::sparse::SparseModel;
 
 use super::FitError;
-use super::sparse_fit::{SelectBy, SparseFit, effective_samples, lag_one_autocorrelation, select_index, sparse_fit};
+use super::sparse_fit::{
+    SelectBy, SparseFit, effective_samples, lag_one_autocorrelation, refit_support, select_index, sparse_fit,
+};
 use crate::sindy::{
     HeldoutScore, Library, Normalisation, QrProblem, SelectionConfig, StlsConfig, log_thresholds, sweep,
 };
@@ -53,10 +55,11 @@ pub struct CouplingRun {
     pub variables: Vec<[f64; 6]>,
     /// `C_l - C_l,roll - C_l,AFC` (NaN where the balance is missing).
     pub target: Vec<f64>,
-    /// Training samples.
+    /// Samples the candidates are fitted on (the training part less its validation part).
     pub train: Range<usize>,
-    /// Held-out samples.
-    pub heldout: Range<usize>,
+    /// Samples the operator's terms are chosen on (the end of the training part); the chosen
+    /// terms are then refitted on `train` and `validation` together.
+    pub validation: Range<usize>,
 }
 
 /// The admissible library with indicator thresholds for Cmu and the roll angle.
@@ -76,21 +79,14 @@ pub fn coupling_library(degree: u8, cmu_threshold: f32, phi_threshold_rad: f32) 
     Ok(library)
 }
 
-/// Fits the operator on `runs` with `library`.
+/// Fits the operator on `runs` with `library`: the threshold sweep on the `train` samples, the
+/// terms chosen on the `validation` samples, and those terms refitted on both.
 pub fn fit_coupling(
     library: &Library,
     runs: &[CouplingRun],
     config: &CouplingConfig,
 ) -> Result<(SparseModel, SparseFit), FitError> {
-    let (mut samples, mut targets) = (Vec::new(), Vec::new());
-    for run in runs {
-        for k in run.train.clone() {
-            if run.target[k].is_finite() {
-                samples.push(run.variables[k]);
-                targets.push(run.target[k]);
-            }
-        }
-    }
+    let (samples, targets) = rows(runs, |run| run.train.clone());
     let problem = QrProblem::new(&library.theta(&samples)?, &targets)?;
     let stls = StlsConfig { threshold: 0.0, alpha: 0.0, max_iter: 20, unbias: true, normalisation: Normalisation::Rms };
     let thresholds = log_thresholds(&problem, Normalisation::Rms, config.n_thresholds, config.min_fraction)?;
@@ -100,16 +96,33 @@ pub fn fit_coupling(
     // The operator without terms (the linear superposition) is always a candidate.
     scored.selected =
         select_index(&scored, SelectBy::OneStep).ok_or(FitError::Internal("no coupling model eligible"))?;
-    let coefficients = scored.selected().point.coefficients.clone();
+    let support: Vec<bool> = scored.selected().point.coefficients.iter().map(|&c| c != 0.0).collect();
+    let (samples, targets) = rows(runs, |run| run.train.start..run.validation.end.max(run.train.end));
+    let coefficients = refit_support(&library.theta(&samples)?, &targets, &support)?;
     let model = library.to_sparse_model(&coefficients)?;
     let report = sparse_fit(library, &scored, SelectBy::OneStep, scored.selected, &coefficients, targets.len());
     Ok((model, report))
 }
 
+/// The finite samples and targets of `runs` over the range `samples_of` picks.
+fn rows(runs: &[CouplingRun], samples_of: impl Fn(&CouplingRun) -> Range<usize>) -> (Vec<[f64; 6]>, Vec<f64>) {
+    let (mut samples, mut targets) = (Vec::new(), Vec::new());
+    for run in runs {
+        for k in samples_of(run) {
+            if run.target[k].is_finite() {
+                samples.push(run.variables[k]);
+                targets.push(run.target[k]);
+            }
+        }
+    }
+    (samples, targets)
+}
+
+/// The one-step error of an operator on the validation samples.
 fn score(library: &Library, runs: &[CouplingRun], coefficients: &[f64]) -> HeldoutScore {
     let mut errors = Vec::new();
     for run in runs {
-        for k in run.heldout.clone() {
+        for k in run.validation.clone() {
             if run.target[k].is_finite() {
                 let predicted = library.predict(coefficients, &run.variables[k]).unwrap_or(f64::NAN);
                 errors.push(predicted - run.target[k]);

@@ -425,8 +425,8 @@ fn fit_plants(
                         .collect();
                     PlantRun {
                         signals: &signals[idx],
-                        train: config.split.training(signals[idx].len()),
-                        heldout: config.split.heldout(signals[idx].len()),
+                        train: config.split.fitting(signals[idx].len()),
+                        validation: config.split.validation(signals[idx].len()),
                         target,
                     }
                 })
@@ -487,7 +487,7 @@ fn fit_coupling_on(
     set.coupling = SparseModel::ZERO;
     let both: Vec<usize> =
         (0..dataset.runs.len()).filter(|&idx| dataset.runs[idx].meta.kind == RunKind::RollActuation).collect();
-    let gates = gate_thresholds(dataset, signals);
+    let gates = gate_thresholds(dataset, signals, &config.split);
     if both.is_empty() {
         notes.push("no roll+actuation runs: the coupling operator is zero (linear superposition)".into());
         return Ok((None, gates));
@@ -521,13 +521,13 @@ fn coupling_run(run: &Run, signals: &RunSignals, set: &CoefficientSet, split: &S
         })
         .collect();
     let target = outputs.iter().zip(&signals.cl).map(|(output, cl)| cl - f64::from(output.cl_linear)).collect();
-    CouplingRun { variables, target, train: split.training(signals.len()), heldout: split.heldout(signals.len()) }
+    CouplingRun { variables, target, train: split.fitting(signals.len()), validation: split.validation(signals.len()) }
 }
 
 /// Indicator thresholds from the data: twice the largest Cmu seen in the roll runs (where no
 /// jet blows) and twice the largest |roll angle| in the actuation runs (where the wing is held
-/// level), with floors of 1 % of the largest Cmu and 0.25 deg.
-fn gate_thresholds(dataset: &Dataset, signals: &[RunSignals]) -> [f64; 2] {
+/// level), with floors of 1 % of the largest Cmu and 0.25 deg; over the training samples only.
+fn gate_thresholds(dataset: &Dataset, signals: &[RunSignals], split: &Split) -> [f64; 2] {
     let largest = |kind: RunKind, value: &dyn Fn(&RunSignals) -> f64| -> f64 {
         dataset
             .runs
@@ -537,8 +537,11 @@ fn gate_thresholds(dataset: &Dataset, signals: &[RunSignals]) -> [f64; 2] {
             .map(|(_, s)| value(s))
             .fold(0.0, f64::max)
     };
-    let max_cmu = |s: &RunSignals| s.cmu[0].iter().chain(&s.cmu[1]).fold(0.0f64, |m, &v| m.max(v));
-    let max_phi = |s: &RunSignals| s.phi_rad.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let max_cmu = |s: &RunSignals| {
+        let training = split.training(s.len());
+        s.cmu[0][training.clone()].iter().chain(&s.cmu[1][training]).fold(0.0f64, |m, &v| m.max(v))
+    };
+    let max_phi = |s: &RunSignals| s.phi_rad[split.training(s.len())].iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let cmu_max_anywhere = dataset.runs.iter().zip(signals).map(|(_, s)| max_cmu(s)).fold(0.0, f64::max);
     let cmu = (2.0 * largest(RunKind::Roll, &max_cmu)).max(0.01 * cmu_max_anywhere);
     let phi = (2.0 * largest(RunKind::Actuation, &max_phi)).max(0.25f64.to_radians());

@@ -11,7 +11,9 @@
 //! (domain-models.md section 5.1, sampling-rate caveat). Regressor and target use the balance
 //! moment through a zero-phase low-pass, so that measurement noise in the regressor does not
 //! bias the lag towards zero. Every model of the threshold sweep is simulated open loop over
-//! the held-out samples, as the core runs it, and the selection uses that free-run error.
+//! validation samples (the end of the training part), as the core runs it, and the selection
+//! uses that free-run error; the chosen support is then refitted on the whole training part
+//! ([`super::split`]).
 
 use std::ops::Range;
 
@@ -22,7 +24,9 @@ use rayon::prelude::*;
 
 use super::FitError;
 use super::signals::{RunSignals, first_order_lag, zero_phase_lowpass};
-use super::sparse_fit::{SelectBy, SparseFit, effective_samples, lag_one_autocorrelation, select_index, sparse_fit};
+use super::sparse_fit::{
+    SelectBy, SparseFit, effective_samples, lag_one_autocorrelation, refit_support, select_index, sparse_fit,
+};
 use crate::sindy::{
     HeldoutScore, Library, Normalisation, QrProblem, SelectionConfig, StlsConfig, log_thresholds, sweep,
 };
@@ -63,10 +67,12 @@ impl Default for PlantConfig {
 pub struct PlantRun<'a> {
     /// The run's signals.
     pub signals: &'a RunSignals,
-    /// Training samples.
+    /// Samples the candidates are fitted on (the training part less its validation part).
     pub train: Range<usize>,
-    /// Held-out samples (scored only).
-    pub heldout: Range<usize>,
+    /// Samples the structure is chosen on (the end of the training part); the chosen structure
+    /// is then refitted on `train` and `validation` together. The held-out part of the run is
+    /// not here at all.
+    pub validation: Range<usize>,
     /// The moment this jet's model must reproduce: the balance, less the other jet's modelled
     /// moment when both jets blow in the run (NaN where the balance is missing).
     pub target: Vec<f64>,
@@ -134,7 +140,6 @@ struct Shape {
 struct PoleSweep {
     shape: Shape,
     scored: crate::sindy::ScoredSweep,
-    n_train: usize,
 }
 
 impl PoleSweep {
@@ -146,8 +151,10 @@ impl PoleSweep {
 /// Fits jet `side` (0 = port, 1 = starboard) on `runs`; returns the core's model and the report.
 ///
 /// The slow pole is profiled: the sweep and its free-run selection run at every time constant
-/// of [`SLOW_TAU_GRID_S`], the pole whose selected model runs best open loop is kept, and only
-/// that model is refined by output error.
+/// of [`SLOW_TAU_GRID_S`], the pole whose selected model runs best open loop on the validation
+/// samples is kept, and only that model is refined by output error (kept when that lowers the
+/// validation error). The chosen pole and support are then refitted on the training and
+/// validation samples together, by equation error and, if it was kept, output error.
 pub fn fit_plant(
     runs: &[PlantRun<'_>],
     side: usize,
@@ -155,11 +162,20 @@ pub fn fit_plant(
     config: &PlantConfig,
 ) -> Result<(PlantParams, SparseFit), FitError> {
     let library = plant_library()?;
-    let filtered: Vec<Vec<f64>> =
-        runs.iter().map(|run| zero_phase_lowpass(&run.target, config.corner_hz, sample_hz)).collect();
+    // Filtered up to the end of the training part only: the backward pass of a zero-phase
+    // filter would otherwise carry held-out samples into the last training samples.
+    let filtered: Vec<Vec<f64>> = runs
+        .iter()
+        .map(|run| {
+            let end = run.train.end.max(run.validation.end).min(run.target.len());
+            let mut smooth = zero_phase_lowpass(&run.target[..end], config.corner_hz, sample_hz);
+            smooth.resize(run.target.len(), f64::NAN);
+            smooth
+        })
+        .collect();
     let cmu_max = runs
         .iter()
-        .flat_map(|run| run.signals.cmu[side][run.train.clone()].iter().copied())
+        .flat_map(|run| run.signals.cmu[side][run.train.start..run.validation.end.max(run.train.end)].iter().copied())
         .filter(|cmu| cmu.is_finite())
         .fold(0.0, f64::max);
     if cmu_max <= 0.0 {
@@ -179,19 +195,35 @@ pub fn fit_plant(
             best = Some(candidate);
         }
     }
-    let PoleSweep { shape, mut scored, n_train } = best.ok_or(FitError::NoPlantModel { side })?;
-    let mut coefficients = scored.selected().point.coefficients.clone();
-    // Output-error refinement of the selected support, kept when it also lowers the held-out
+    let PoleSweep { shape, mut scored, .. } = best.ok_or(FitError::NoPlantModel { side })?;
+    let selected = scored.selected().point.coefficients.clone();
+    // Output-error refinement of the selected support, kept when it also lowers the validation
     // free-run error (the error the core's open-loop plant makes).
-    let refined = refine_output_error(&library, runs, side, shape, &coefficients);
-    let before = score(&library, runs, &filtered, side, shape, &coefficients).free_run_rms;
+    let refined = refine_output_error(&library, runs, side, shape, &selected);
+    let before = score(&library, runs, &filtered, side, shape, &selected).free_run_rms;
     let after = score(&library, runs, &filtered, side, shape, &refined);
-    if after.free_run_rms.zip(before).is_some_and(|(after, before)| after < before) {
-        coefficients = refined;
-        let selected = &mut scored.points[scored.selected];
-        selected.point.coefficients.clone_from(&coefficients);
-        selected.heldout = after;
+    let refine = after.free_run_rms.zip(before).is_some_and(|(after, before)| after < before);
+    if refine {
+        let point = &mut scored.points[scored.selected];
+        point.point.coefficients.clone_from(&refined);
+        point.heldout = after;
     }
+    // The chosen structure refitted on the whole training part.
+    let whole: Vec<PlantRun<'_>> = runs
+        .iter()
+        .map(|run| PlantRun {
+            train: run.train.start..run.validation.end.max(run.train.end),
+            validation: 0..0,
+            ..run.clone()
+        })
+        .collect();
+    let (samples, targets) = increment_rows(&whole, &filtered, side, shape);
+    let support: Vec<bool> = selected.iter().map(|&c| c != 0.0).collect();
+    let mut coefficients = refit_support(&library.theta(&samples)?, &targets, &support)?;
+    if refine {
+        coefficients = refine_output_error(&library, &whole, side, shape, &coefficients);
+    }
+    let n_train = targets.len();
     add_identity(&library, &mut coefficients)?;
     let model = library.to_sparse_model(&coefficients)?;
     let uses_slow =
@@ -202,16 +234,13 @@ pub fn fit_plant(
     Ok((PlantParams { slow_pole, cmu_max: cmu_max as f32, model }, report))
 }
 
-/// The threshold sweep of the increment regression at one slow pole, scored open loop on the
-/// held-out samples, with the free-run selection made.
-fn sweep_at(
-    shape: Shape,
-    library: &Library,
+/// The increment regression's rows over the `train` samples of `runs`.
+fn increment_rows(
     runs: &[PlantRun<'_>],
     filtered: &[Vec<f64>],
     side: usize,
-    config: &PlantConfig,
-) -> Result<PoleSweep, FitError> {
+    shape: Shape,
+) -> (Vec<[f64; 6]>, Vec<f64>) {
     let (mut samples, mut targets) = (Vec::new(), Vec::new());
     for (run, smooth) in runs.iter().zip(filtered) {
         let vars = variables(run.signals, side, smooth, shape);
@@ -220,14 +249,28 @@ fn sweep_at(
             targets.push(smooth[k + 1] - smooth[k]);
         }
     }
+    (samples, targets)
+}
+
+/// The threshold sweep of the increment regression at one slow pole, scored open loop on the
+/// validation samples, with the free-run selection made.
+fn sweep_at(
+    shape: Shape,
+    library: &Library,
+    runs: &[PlantRun<'_>],
+    filtered: &[Vec<f64>],
+    side: usize,
+    config: &PlantConfig,
+) -> Result<PoleSweep, FitError> {
+    let (samples, targets) = increment_rows(runs, filtered, side, shape);
     let problem = QrProblem::new(&library.theta(&samples)?, &targets)?;
     let stls = StlsConfig { threshold: 0.0, alpha: 0.0, max_iter: 20, unbias: true, normalisation: Normalisation::Rms };
     let thresholds = log_thresholds(&problem, Normalisation::Rms, config.n_thresholds, config.min_fraction)?;
     let swept = sweep(&problem, &stls, &thresholds)?;
-    let heldout = |coefficients: &[f64]| score(library, runs, filtered, side, shape, coefficients);
-    let mut scored = swept.select(heldout, &SelectionConfig::default())?;
+    let validation = |coefficients: &[f64]| score(library, runs, filtered, side, shape, coefficients);
+    let mut scored = swept.select(validation, &SelectionConfig::default())?;
     scored.selected = select_index(&scored, SelectBy::FreeRun).ok_or(FitError::NoPlantModel { side })?;
-    Ok(PoleSweep { shape, scored, n_train: targets.len() })
+    Ok(PoleSweep { shape, scored })
 }
 
 /// Refines the non-zero coefficients of an increment model by Levenberg-Marquardt on the
@@ -323,7 +366,7 @@ fn add_identity(library: &Library, coefficients: &mut [f64]) -> Result<(), FitEr
     Ok(())
 }
 
-/// Held-out one-step and free-run errors of an increment model.
+/// Validation one-step and free-run errors of an increment model.
 fn score(
     library: &Library,
     runs: &[PlantRun<'_>],
@@ -336,13 +379,13 @@ fn score(
     let mut free_run_errors = Vec::new();
     for (run, smooth) in runs.iter().zip(filtered) {
         let vars = variables(run.signals, side, smooth, shape);
-        for k in run.heldout.start..run.heldout.end.saturating_sub(1) {
+        for k in run.validation.start..run.validation.end.saturating_sub(1) {
             let predicted = library.predict(coefficients, &vars[k]).unwrap_or(f64::NAN);
             one_step_sq += (predicted - (smooth[k + 1] - smooth[k])).powi(2);
             n_one_step += 1;
         }
-        let simulated = simulate_increments(library, coefficients, run.signals, side, shape, run.heldout.end);
-        for k in run.heldout.clone() {
+        let simulated = simulate_increments(library, coefficients, run.signals, side, shape, run.validation.end);
+        for k in run.validation.clone() {
             if run.target[k].is_finite() {
                 free_run_errors.push(simulated[k] - run.target[k]);
             }

@@ -1,17 +1,21 @@
-//! What the plant and coupling fits share: the threshold sweep on a library, held-out scoring,
-//! the selection of one model, and the record of the sweep for the model card.
+//! What the plant and coupling fits share: the threshold sweep on a library, scoring on the
+//! validation samples (the end of the training part, [`super::split`]), the selection of one
+//! model, its refit on the whole training part, and the record of the sweep for the model card.
 //!
 //! Selection: held-out errors of neighbouring samples are strongly correlated (the errors of a
 //! free-running model drift slowly), so counting every sample as independent would make any
 //! extra term "significant". The information criterion therefore uses the effective number of
 //! samples of an AR(1) error, `n_eff = n (1 - r1) / (1 + r1)` with `r1` the lag-one
-//! autocorrelation of the held-out error (Bartlett 1946; von Storch & Zwiers, Statistical
+//! autocorrelation of the validation error (Bartlett 1946; von Storch & Zwiers, Statistical
 //! Analysis in Climate Research, section 17.1).
 
 use estimator_core::coeffs::MAX_TERMS;
 use serde::Serialize;
 
-use crate::sindy::{InformationCriterion, Library, ScoredPoint, ScoredSweep};
+use nalgebra::DMatrix;
+
+use super::FitError;
+use crate::sindy::{InformationCriterion, Library, Normalisation, ScoredPoint, ScoredSweep, StlsConfig, stls_dense};
 
 /// One distinct model of a sweep, for reports.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -20,28 +24,29 @@ pub struct SweepRow {
     pub threshold: f64,
     /// Number of terms.
     pub n_terms: usize,
-    /// Held-out one-step RMS error.
-    pub heldout_one_step_rms: f64,
-    /// Held-out free-run RMS error (the plant), when simulated.
-    pub heldout_free_run_rms: Option<f64>,
-    /// Effective number of held-out samples behind the criterion.
-    pub heldout_effective_samples: usize,
+    /// Validation one-step RMS error (of the model fitted without the validation samples).
+    pub validation_one_step_rms: f64,
+    /// Validation free-run RMS error (the plant), when simulated.
+    pub validation_free_run_rms: Option<f64>,
+    /// Effective number of validation samples behind the criterion.
+    pub validation_effective_samples: usize,
     /// Information criterion (BIC with the effective sample size); `None` if not eligible.
     pub criterion: Option<f64>,
-    /// On the Pareto front of (terms, held-out error).
+    /// On the Pareto front of (terms, validation error).
     pub pareto: bool,
 }
 
 /// A fitted sparse model with its sweep.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct SparseFit {
-    /// `(term name, coefficient)` of the selected model, in library order.
+    /// `(term name, coefficient)` of the selected model refitted on the whole training part, in
+    /// library order.
     pub terms: Vec<(String, f64)>,
     /// The sweep's distinct models.
     pub sweep: Vec<SweepRow>,
     /// Index of the selected model in `sweep`.
     pub selected: usize,
-    /// Number of training samples.
+    /// Number of training samples of the refit.
     pub n_train: usize,
 }
 
@@ -72,7 +77,7 @@ pub fn effective_samples(n: usize, r1: f64) -> usize {
     ((n as f64 * factor).round() as usize).clamp(1.min(n), n)
 }
 
-/// The held-out error measure a selection uses.
+/// The validation error measure a selection uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SelectBy {
     /// The one-step error (a static map such as the coupling operator).
@@ -81,7 +86,7 @@ pub enum SelectBy {
     FreeRun,
 }
 
-/// BIC of one scored model on the chosen held-out error, with the effective sample size
+/// BIC of one scored model on the chosen validation error, with the effective sample size
 /// carried in `HeldoutScore::n_samples`; `None` when it has more than [`MAX_TERMS`] terms or
 /// no finite error.
 fn criterion_of(point: &ScoredPoint, by: SelectBy) -> Option<f64> {
@@ -106,6 +111,28 @@ pub fn select_index(scored: &ScoredSweep, by: SelectBy) -> Option<usize> {
         .map(|(idx, _)| idx)
 }
 
+/// Least squares of `targets` on the columns of `theta` where `support` holds, zero elsewhere:
+/// the structure chosen on the validation samples, refitted on the whole training part (the
+/// unbiasing step of STLS, which is plain least squares on the support).
+///
+/// # Errors
+/// [`FitError`] when the least-squares problem is invalid (no rows, non-finite values).
+pub fn refit_support(theta: &DMatrix<f64>, targets: &[f64], support: &[bool]) -> Result<Vec<f64>, FitError> {
+    let columns: Vec<usize> = (0..support.len()).filter(|&idx| support[idx]).collect();
+    let mut coefficients = vec![0.0; support.len()];
+    if columns.is_empty() {
+        return Ok(coefficients);
+    }
+    let reduced = theta.select_columns(&columns);
+    let config =
+        StlsConfig { threshold: 0.0, alpha: 0.0, max_iter: 1, unbias: true, normalisation: Normalisation::Rms };
+    let fit = stls_dense(&reduced, targets, &config)?;
+    for (&idx, &value) in columns.iter().zip(&fit.coefficients) {
+        coefficients[idx] = value;
+    }
+    Ok(coefficients)
+}
+
 /// The report of a scored sweep with `selected` chosen.
 #[must_use]
 pub fn sparse_fit(
@@ -124,9 +151,9 @@ pub fn sparse_fit(
         .map(|point| SweepRow {
             threshold: point.point.threshold,
             n_terms: point.point.n_terms,
-            heldout_one_step_rms: point.heldout.one_step_rms,
-            heldout_free_run_rms: point.heldout.free_run_rms,
-            heldout_effective_samples: point.heldout.n_samples,
+            validation_one_step_rms: point.heldout.one_step_rms,
+            validation_free_run_rms: point.heldout.free_run_rms,
+            validation_effective_samples: point.heldout.n_samples,
             criterion: criterion_of(point, by),
             pareto: point.pareto,
         })
