@@ -575,15 +575,45 @@ fn print_evaluation(evaluation: &host_tools::evaluate::Evaluation) {
     for row in &evaluation.table1 {
         println!("  {:>5.1}  {:>6.1} %  {:>6.1} %", row.alpha_deg, 100.0 * row.ratio_to_mean, 100.0 * row.ratio_to_std);
     }
-    println!("Tables 2 and 3 (held-out): alpha, E_SINDy/E_lin, corr linear, corr operator");
+    println!(
+        "Tables 2 and 3 (held-out): alpha, E_SINDy/E_lin [95 % interval], corr linear, corr operator, change [95 % interval]"
+    );
+    let ratio_interval =
+        |ci: Option<[f64; 2]>| ci.map_or_else(|| "[-]".to_owned(), |[low, high]| format!("[{low:.3}, {high:.3}]"));
+    let change_interval =
+        |ci: Option<[f64; 2]>| ci.map_or_else(|| "[-]".to_owned(), |[low, high]| format!("[{low:+.2e}, {high:+.2e}]"));
     for row in &evaluation.coupling {
-        println!("  {:>5.1}  {:>6.3}  {:>7.4}  {:>7.4}", row.alpha_deg, row.ratio, row.corr_linear, row.corr_operator);
+        println!(
+            "  {:>5.1}  {:>6.3} {:<14}  {:>9.6}  {:>9.6}  {:+.2e} {}",
+            row.alpha_deg,
+            row.ratio,
+            ratio_interval(row.ratio_ci95),
+            row.corr_linear,
+            row.corr_operator,
+            row.corr_operator - row.corr_linear,
+            change_interval(row.corr_change_ci95)
+        );
     }
     println!("Blocks (held-out): alpha, block, RMS, correlation, RMS / balance noise");
     for row in &evaluation.blocks {
         println!(
             "  {:>5.1}  {:<9} {:>10.3e}  {:>7.4}  {:>5.2}",
             row.alpha_deg, row.block, row.rms, row.correlation, row.rms_over_noise
+        );
+    }
+    println!(
+        "Fusion (roll runs, held-out): alpha, fused/eGK RMS [95 % interval], fused/pressure path RMS [95 % interval]"
+    );
+    for row in &evaluation.fusion {
+        let interval =
+            |ci: Option<[f64; 2]>| ci.map_or_else(|| "[-]".to_owned(), |[low, high]| format!("[{low:.4}, {high:.4}]"));
+        println!(
+            "  {:>5.1}  {:.4} {}  {:.4} {}",
+            row.alpha_deg,
+            row.over_egk,
+            interval(row.over_egk_ci95),
+            row.over_pressure,
+            interval(row.over_pressure_ci95)
         );
     }
     println!(

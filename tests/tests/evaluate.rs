@@ -51,6 +51,16 @@ fn evaluation_report_is_complete_on_the_three_kinds() {
     assert_eq!(evaluation.blocks.len(), 12, "six blocks at two angles of attack");
     for row in &evaluation.coupling {
         assert!(row.ratio.is_finite() && row.ratio > 0.0 && row.corr_linear.is_finite(), "{row:?}");
+        // Every comparison carries its bootstrap interval, ordered and around a finite value.
+        let [low, high] = row.ratio_ci95.expect("ratio interval");
+        assert!(low.is_finite() && low <= high && row.bootstrap_block >= 1, "{row:?}");
+        let [low, high] = row.corr_change_ci95.expect("correlation-change interval");
+        assert!(low.is_finite() && low <= high, "{row:?}");
+    }
+    assert_eq!(evaluation.fusion.len(), 2, "the fusion against its sources at both angles");
+    for row in &evaluation.fusion {
+        let [low, high] = row.over_egk_ci95.expect("interval against the eGK");
+        assert!(low <= high && row.over_pressure_ci95.is_some() && row.over_egk > 0.0, "{row:?}");
     }
     let figures = figures(&dataset, &replayed, &config.split, &evaluation, None);
     assert!(figures.iter().any(|figure| figure.file == "fig10_operator.svg" && figure.svg.starts_with("<svg")));

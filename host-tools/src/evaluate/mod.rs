@@ -6,6 +6,7 @@
 //! Everything is computed on the held-out part of every run (the part a fit never sees),
 //! replaying the recorded channels through the estimator that flies (estimator-core, f32).
 
+mod bootstrap;
 mod figures;
 mod metrics;
 mod pressure_information;
@@ -62,6 +63,12 @@ pub struct CouplingRow {
     pub corr_linear: f64,
     /// Correlation with the operator's prediction.
     pub corr_operator: f64,
+    /// 95 % moving-block bootstrap interval of `ratio` ([`bootstrap`]).
+    pub ratio_ci95: Option<bootstrap::Interval>,
+    /// 95 % moving-block bootstrap interval of `corr_operator - corr_linear`.
+    pub corr_change_ci95: Option<bootstrap::Interval>,
+    /// Block length of the bootstrap, samples (from the operator's error's autocorrelation).
+    pub bootstrap_block: usize,
     /// Held-out samples.
     pub n_samples: usize,
 }
@@ -104,6 +111,8 @@ pub struct Evaluation {
     pub coupling: Vec<CouplingRow>,
     /// Every block per angle of attack.
     pub blocks: Vec<BlockRow>,
+    /// The fused estimate against the eGK and the pressure path alone.
+    pub fusion: Vec<FusionRow>,
     /// The balance's white-noise RMS per angle of attack.
     pub noise_rms: Vec<(f64, f64)>,
     /// The noise-robustness sweep.
@@ -112,6 +121,26 @@ pub struct Evaluation {
     pub pressure_information: Vec<PressureInformationRow>,
     /// What could not be evaluated and why.
     pub notes: Vec<String>,
+}
+
+/// The fusion against its two sources at one angle of attack (roll runs, held out): held-out
+/// RMS of the fused estimate divided by each source's, with 95 % moving-block bootstrap
+/// intervals of the ratios over the same resampled samples, so that a small gain can be told
+/// from a tie.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct FusionRow {
+    /// Angle of attack, deg.
+    pub alpha_deg: f64,
+    /// RMS of the fused estimate over the eGK's.
+    pub over_egk: f64,
+    /// Its 95 % interval.
+    pub over_egk_ci95: Option<bootstrap::Interval>,
+    /// RMS of the fused estimate over the pressure path's.
+    pub over_pressure: f64,
+    /// Its 95 % interval.
+    pub over_pressure_ci95: Option<bootstrap::Interval>,
+    /// Held-out samples.
+    pub n_samples: usize,
 }
 
 /// The replayed estimates of every run.
@@ -144,12 +173,13 @@ pub fn evaluate(
         notes.push("Table 1 needs roll, actuation and roll+actuation runs at one angle of attack".into());
     }
     let coupling: Vec<CouplingRow> =
-        alphas.iter().filter_map(|&alpha| coupling_row(dataset, &replayed, split, alpha)).collect();
+        alphas.iter().filter_map(|&alpha| coupling_row(dataset, &replayed, split, alpha, config.seed)).collect();
     let noise: Vec<(f64, f64)> = alphas
         .iter()
         .filter_map(|&alpha| noise_rms(dataset, &runs_at(dataset, None, alpha), split).map(|rms| (alpha, rms)))
         .collect();
     let blocks = block_rows(dataset, &replayed, split, &noise);
+    let fusion = alphas.iter().filter_map(|&alpha| fusion_row(dataset, &replayed, split, alpha, config.seed)).collect();
     let pressure_information = pressure_information(dataset, &replayed, split, &alphas);
     let noise_robustness = if coupling.is_empty() {
         notes.push("no roll+actuation runs: no coupling tables and no noise-robustness test".into());
@@ -162,6 +192,7 @@ pub fn evaluate(
         table1,
         coupling,
         blocks,
+        fusion,
         noise_rms: noise,
         noise_robustness,
         pressure_information,
@@ -202,7 +233,13 @@ fn pairs(
     (estimates, measured)
 }
 
-fn coupling_row(dataset: &Dataset, replayed: &Replayed, split: &Split, alpha_deg: f64) -> Option<CouplingRow> {
+fn coupling_row(
+    dataset: &Dataset,
+    replayed: &Replayed,
+    split: &Split,
+    alpha_deg: f64,
+    seed: u64,
+) -> Option<CouplingRow> {
     let runs = runs_at(dataset, Some(RunKind::RollActuation), alpha_deg);
     if runs.is_empty() {
         return None;
@@ -211,6 +248,18 @@ fn coupling_row(dataset: &Dataset, replayed: &Replayed, split: &Split, alpha_deg
     let (operator, _) = pairs(dataset, replayed, split, &runs, |o| o.cl);
     let (e_lin, n_samples) = norm_and_count(&linear, &measured);
     let (e_sindy, _) = norm_and_count(&operator, &measured);
+    let errors: Vec<f64> = operator.iter().zip(&measured).map(|(o, m)| o - m).collect();
+    let block = bootstrap::block_length(&errors);
+    let ratio_ci95 = bootstrap::interval(measured.len(), block, seed, |idx| {
+        let measured = bootstrap::gather(&measured, idx);
+        norm_and_count(&bootstrap::gather(&operator, idx), &measured).0
+            / norm_and_count(&bootstrap::gather(&linear, idx), &measured).0
+    });
+    let corr_change_ci95 = bootstrap::interval(measured.len(), block, seed, |idx| {
+        let measured = bootstrap::gather(&measured, idx);
+        correlation(&bootstrap::gather(&operator, idx), &measured)
+            - correlation(&bootstrap::gather(&linear, idx), &measured)
+    });
     Some(CouplingRow {
         alpha_deg,
         e_lin,
@@ -218,8 +267,46 @@ fn coupling_row(dataset: &Dataset, replayed: &Replayed, split: &Split, alpha_deg
         ratio: e_sindy / e_lin,
         corr_linear: correlation(&linear, &measured),
         corr_operator: correlation(&operator, &measured),
+        ratio_ci95,
+        corr_change_ci95,
+        bootstrap_block: block,
         n_samples,
     })
+}
+
+fn fusion_row(dataset: &Dataset, replayed: &Replayed, split: &Split, alpha_deg: f64, seed: u64) -> Option<FusionRow> {
+    let runs = runs_at(dataset, Some(RunKind::Roll), alpha_deg);
+    // Samples where the balance and all three estimates are finite, so the ratios compare the
+    // same samples.
+    let (mut fused, mut egk, mut pressure, mut measured) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for &idx in &runs {
+        let cl = &dataset.runs[idx].channels.cl;
+        for k in split.heldout(cl.len()) {
+            let output = &replayed.outputs[idx][k];
+            let values = [f64::from(output.cl_roll), f64::from(output.cl_egk), f64::from(output.cl_pressure), cl[k]];
+            if values.iter().all(|value| value.is_finite()) {
+                fused.push(values[0]);
+                egk.push(values[1]);
+                pressure.push(values[2]);
+                measured.push(values[3]);
+            }
+        }
+    }
+    if measured.is_empty() {
+        return None;
+    }
+    let errors: Vec<f64> = fused.iter().zip(&measured).map(|(f, m)| f - m).collect();
+    let block = bootstrap::block_length(&errors);
+    let ratio_over = |other: &[f64]| {
+        let ratio = |idx: &[usize]| {
+            let measured = bootstrap::gather(&measured, idx);
+            rms(&bootstrap::gather(&fused, idx), &measured) / rms(&bootstrap::gather(other, idx), &measured)
+        };
+        (rms(&fused, &measured) / rms(other, &measured), bootstrap::interval(measured.len(), block, seed, ratio))
+    };
+    let (over_egk, over_egk_ci95) = ratio_over(&egk);
+    let (over_pressure, over_pressure_ci95) = ratio_over(&pressure);
+    Some(FusionRow { alpha_deg, over_egk, over_egk_ci95, over_pressure, over_pressure_ci95, n_samples: measured.len() })
 }
 
 /// Picks one estimate from a step's outputs.
@@ -271,7 +358,7 @@ fn noise_sweep(dataset: &Dataset, set: &CoefficientSet, config: &EvaluationConfi
             let per_alpha = noisy
                 .alphas_deg()
                 .iter()
-                .filter_map(|&alpha| coupling_row(&noisy, &replayed, &config.split, alpha))
+                .filter_map(|&alpha| coupling_row(&noisy, &replayed, &config.split, alpha, config.seed))
                 .collect();
             Ok(NoiseRow { sigma, per_alpha })
         })

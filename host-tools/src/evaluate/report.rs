@@ -63,28 +63,57 @@ fn coupling_tables(evaluation: &Evaluation) -> Section {
         .coupling
         .iter()
         .map(|row| {
-            vec![format!("{}", row.alpha_deg), e3(row.e_lin), e3(row.e_sindy), f3(row.ratio), row.n_samples.to_string()]
+            vec![
+                format!("{}", row.alpha_deg),
+                e3(row.e_lin),
+                e3(row.e_sindy),
+                f3(row.ratio),
+                row.ratio_ci95.map_or_else(|| "-".into(), |[low, high]| format!("{low:.3} .. {high:.3}")),
+                row.n_samples.to_string(),
+            ]
         })
         .collect();
     let table3 = evaluation
         .coupling
         .iter()
         .map(|row| {
-            vec![format!("{}", row.alpha_deg), format!("{:.4}", row.corr_linear), format!("{:.4}", row.corr_operator)]
+            vec![
+                format!("{}", row.alpha_deg),
+                format!("{:.6}", row.corr_linear),
+                format!("{:.6}", row.corr_operator),
+                format!("{:+.2e}", row.corr_operator - row.corr_linear),
+                row.corr_change_ci95.map_or_else(|| "-".into(), |[low, high]| format!("{low:+.2e} .. {high:+.2e}")),
+            ]
         })
         .collect();
     Section {
         heading: "Tables 2 and 3: the coupling operator".into(),
-        paragraphs: vec!["`E_lin = ||C_l,RollAFC - C_l,Roll^model - C_l,AFC^model||_2` and `E_SINDy` with the operator's correction (paper eqs. 13 and 14), on the held-out samples of the roll+actuation runs.".into()],
+        paragraphs: vec![
+            "`E_lin = ||C_l,RollAFC - C_l,Roll^model - C_l,AFC^model||_2` and `E_SINDy` with the operator's correction (paper eqs. 13 and 14), on the held-out samples of the roll+actuation runs.".into(),
+            "The intervals are 95 % moving-block bootstrap intervals (1000 resamples of blocks as long as the operator's error stays correlated): a ratio whose interval lies below 1, or a correlation change whose interval lies above 0, is an improvement the held-out data support; an interval that straddles the line is a tie.".into(),
+        ],
         tables: vec![
             Table {
                 caption: "Table 2: error with the coupling operator (paper: 0.99, 0.90, 0.85)".into(),
-                header: vec!["alpha (deg)".into(), "E_lin".into(), "E_SINDy".into(), "E_SINDy / E_lin".into(), "samples".into()],
+                header: vec![
+                    "alpha (deg)".into(),
+                    "E_lin".into(),
+                    "E_SINDy".into(),
+                    "E_SINDy / E_lin".into(),
+                    "95 % interval".into(),
+                    "samples".into(),
+                ],
                 rows: table2,
             },
             Table {
                 caption: "Table 3: correlation with the measured moment (paper at 20 deg: 0.8423 linear, 0.8699 operator)".into(),
-                header: vec!["alpha (deg)".into(), "linear assumption".into(), "optimal operator".into()],
+                header: vec![
+                    "alpha (deg)".into(),
+                    "linear assumption".into(),
+                    "optimal operator".into(),
+                    "change".into(),
+                    "95 % interval of the change".into(),
+                ],
                 rows: table3,
             },
         ],
@@ -132,6 +161,20 @@ fn blocks(evaluation: &Evaluation) -> Section {
             ]
         })
         .collect();
+    let interval = |ci: Option<[f64; 2]>| ci.map_or_else(|| "-".into(), |[low, high]| format!("{low:.4} .. {high:.4}"));
+    let fusion = evaluation
+        .fusion
+        .iter()
+        .map(|row| {
+            vec![
+                format!("{}", row.alpha_deg),
+                format!("{:.4}", row.over_egk),
+                interval(row.over_egk_ci95),
+                format!("{:.4}", row.over_pressure),
+                interval(row.over_pressure_ci95),
+            ]
+        })
+        .collect();
     let noise = evaluation.noise_rms.iter().map(|(alpha, rms)| vec![format!("{alpha}"), e3(*rms)]).collect();
     let information = evaluation
         .pressure_information
@@ -154,6 +197,17 @@ fn blocks(evaluation: &Evaluation) -> Section {
                 caption: "Held-out error per block".into(),
                 header: vec!["alpha (deg)".into(), "block".into(), "runs".into(), "RMS".into(), "correlation".into(), "RMS / noise".into()],
                 rows,
+            },
+            Table {
+                caption: "The fusion against its sources (roll runs): fused RMS over each source's, with 95 % moving-block bootstrap intervals; below 1 beyond the interval is a gain the held-out data support".into(),
+                header: vec![
+                    "alpha (deg)".into(),
+                    "fused / eGK".into(),
+                    "95 % interval".into(),
+                    "fused / pressure path".into(),
+                    "95 % interval".into(),
+                ],
+                rows: fusion,
             },
             Table { caption: "Balance noise (white, from first differences)".into(), header: vec!["alpha (deg)".into(), "noise RMS".into()], rows: noise },
             Table {
