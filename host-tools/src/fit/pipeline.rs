@@ -293,17 +293,27 @@ fn fit_egk(
     Ok(fits)
 }
 
+/// Every run's pressure-fit samples. The disturbance moment that fits the map to `C_l` is the
+/// balance in roll runs and the fitted eGK's moment in actuation runs (`held`, by run index):
+/// the jets change the pressures as well, and without the actuation runs the map read that
+/// change as roll moment (on a tunnel whose taps see the blowing, the fused estimate of a blown
+/// run was off by about ten times the balance noise).
 fn pressure_runs<'a>(
     dataset: &'a Dataset,
     signals: &'a [RunSignals],
+    held: &'a [Option<Vec<f64>>],
     split: &Split,
 ) -> Result<Vec<PressureRun<'a>>, FitError> {
     dataset
         .runs
         .iter()
         .zip(signals)
-        .map(|(run, signals)| {
-            let disturbance = run.meta.kind == RunKind::Roll;
+        .zip(held)
+        .map(|((run, signals), held)| {
+            let disturbance = match run.meta.kind {
+                RunKind::Roll => Some(run.channels.cl.as_slice()),
+                _ => held.as_deref(),
+            };
             Ok(PressureRun::from_signals(signals, &run.channels, split.training(signals.len()), disturbance)?)
         })
         .collect()
@@ -316,7 +326,18 @@ fn fit_pressure(
     config: &FitConfig,
     set: &CoefficientSet,
 ) -> Result<super::pressure::PressureFit, FitError> {
-    let runs = pressure_runs(dataset, signals, &config.split)?;
+    let held: Vec<Option<Vec<f64>>> = dataset
+        .runs
+        .iter()
+        .zip(signals)
+        .map(|(run, signals)| {
+            (run.meta.kind == RunKind::Actuation).then(|| {
+                let alpha_deg = run.meta.alpha_deg;
+                simulate(&params_at(set, alpha_deg as f32), alpha_deg, f64::from(set.dt_s), signals)
+            })
+        })
+        .collect();
+    let runs = pressure_runs(dataset, signals, &held, &config.split)?;
     let n_alpha = usize::from(set.n_alpha).clamp(1, N_ALPHA);
     let breakpoints: Vec<f64> = set.alpha_schedule_deg[..n_alpha].iter().map(|&deg| f64::from(deg)).collect();
     Ok(fit_pressure_model(&runs, &config.pressure, &breakpoints)?)
@@ -340,7 +361,8 @@ fn fit_fusion_on(
             f64::from(set.dt_s),
             &signals[idx],
         );
-        let full = PressureRun::from_signals(&signals[idx], &run.channels, 0..signals[idx].len(), true)?;
+        let full =
+            PressureRun::from_signals(&signals[idx], &run.channels, 0..signals[idx].len(), Some(&run.channels.cl))?;
         let pressure = run_pressure_filter(pressure, &full)?;
         outputs.push((idx, egk, pressure));
     }

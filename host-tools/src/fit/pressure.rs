@@ -90,23 +90,27 @@ pub struct PressureRun<'a> {
     pub cl: &'a [f64],
     /// Angle of attack, deg (it picks the map to `C_l` in the alpha schedule).
     pub alpha_deg: &'a [f64],
-    /// True for the runs whose `cl` is the disturbance moment alone (roll runs without
-    /// blowing): only these fit the map to `C_l`.
-    pub disturbance: bool,
+    /// The disturbance moment at every sample, where it is known: the measured `cl` of a roll
+    /// run, or the disturbance model's moment in an actuation run (the wing is held, so the
+    /// balance carries the jets' moment as well; the blowing changes the pressures too, and the
+    /// map must not read that as roll moment). `None` for runs that mix both. Only runs with it
+    /// fit the map to `C_l`.
+    pub disturbance: Option<&'a [f64]>,
 }
 
 impl<'a> PressureRun<'a> {
     /// The samples `range` of a run: inputs from its derived signals, pressures and `C_l` from
-    /// its channels.
+    /// its channels, the disturbance moment (see [`PressureRun::disturbance`]) from
+    /// `disturbance`, indexed like the channels.
     ///
     /// # Errors
     ///
-    /// [`PressureFitError::RangeOutOfBounds`] when `range` does not lie inside both.
+    /// [`PressureFitError::RangeOutOfBounds`] when `range` does not lie inside all of them.
     pub fn from_signals(
         signals: &'a RunSignals,
         channels: &'a Channels,
         range: Range<usize>,
-        disturbance: bool,
+        disturbance: Option<&'a [f64]>,
     ) -> Result<Self, PressureFitError> {
         let len = signals.len().min(channels.len());
         let out_of_bounds = || PressureFitError::RangeOutOfBounds { start: range.start, end: range.end, len };
@@ -122,7 +126,7 @@ impl<'a> PressureRun<'a> {
             cp,
             cl: slice(&channels.cl)?,
             alpha_deg: slice(&signals.alpha_deg)?,
-            disturbance,
+            disturbance: disturbance.map(slice).transpose()?,
         })
     }
 
@@ -1157,17 +1161,17 @@ struct ClSamples {
 fn cl_samples(runs: &[PressureRun<'_>], model: &PressureModelF64, warmup: usize) -> ClSamples {
     let per_run: Vec<ClSamples> = runs
         .par_iter()
-        .filter(|run| run.disturbance)
-        .map(|run| {
+        .filter_map(|run| Some((run, run.disturbance?)))
+        .map(|(run, disturbance)| {
             let mut samples =
                 ClSamples { rows: Vec::with_capacity(run.len()), targets: Vec::new(), alpha_deg: Vec::new() };
             let mut filter = PressureFilterF64::new(model);
             let mut inputs = HeldInputs::default();
-            for k in 0..run.len() {
+            for (k, &target) in disturbance.iter().enumerate().take(run.len()) {
                 let step = filter.step(model, &inputs.hold(run.inputs(k)), &run.cp_at(k), run.alpha_deg[k]);
-                if k >= warmup && run.cl[k].is_finite() {
+                if k >= warmup && target.is_finite() {
                     samples.rows.push(step.filtered_cp);
-                    samples.targets.push(run.cl[k]);
+                    samples.targets.push(target);
                     samples.alpha_deg.push(run.alpha_deg[k]);
                 }
             }
@@ -1390,6 +1394,7 @@ mod tests {
 
     impl SyntheticRun {
         fn view(&self, range: Range<usize>, disturbance: bool) -> PressureRun<'_> {
+            let target = disturbance.then(|| &self.cl[range.clone()]);
             PressureRun {
                 phi_rad: &self.phi_rad[range.clone()],
                 phi_dot_rad_s: &self.phi_dot_rad_s[range.clone()],
@@ -1397,7 +1402,7 @@ mod tests {
                 cp: std::array::from_fn(|tap| &self.cp[tap][range.clone()]),
                 cl: &self.cl[range.clone()],
                 alpha_deg: &self.alpha_deg[range],
-                disturbance,
+                disturbance: target,
             }
         }
     }
@@ -1744,7 +1749,7 @@ mod tests {
             cp,
             cl: &zeros,
             alpha_deg: &zeros,
-            disturbance: false,
+            disturbance: None,
         };
         let reduced = ReducedRun { coords, samples: (0..n).collect() };
         let dynamics = Dynamics::fit(&[run], &[reduced], 0.999).unwrap();
