@@ -4,7 +4,7 @@
 # again: every install step is idempotent.
 #
 #   ./ci.sh          all jobs
-#   ./ci.sh JOB ...  some of: setup fmt clippy test doc nostd
+#   ./ci.sh JOB ...  some of: setup fmt clippy test doc nostd foreign
 set -euo pipefail
 cd "$(dirname "$0")"
 
@@ -17,6 +17,8 @@ setup() {
         if [ "$(id -u)" = 0 ]; then apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq qemu-system-arm >/dev/null
         else sudo apt-get update -qq && sudo DEBIAN_FRONTEND=noninteractive apt-get install -y -qq qemu-system-arm >/dev/null; fi
     fi
+    # numpy runs the second, independent tunnel of the `foreign` job (tools/foreign-tunnel).
+    python3 -c "import numpy" 2>/dev/null || python3 -m pip install --quiet --disable-pip-version-check "numpy>=1.24"
 }
 
 fmt() { cargo fmt --all -- --check; }
@@ -36,8 +38,15 @@ nostd() {
     cargo build -p firmware-sim --bin panic_check --no-default-features --features target --target thumbv7em-none-eabihf --profile firmware
 }
 
+# Datasets from a second tunnel written apart from firmware-sim's (other equations, excitation,
+# noise and file conventions): fit a clean recording, then every injectable effect must be named.
+foreign() {
+    cargo build --release -p host-tools
+    tools/foreign-tunnel/check.sh "${CARGO_TARGET_DIR:-target}/foreign-tunnel"
+}
+
 jobs=("$@")
-[ ${#jobs[@]} -gt 0 ] || jobs=(setup fmt clippy test doc nostd)
+[ ${#jobs[@]} -gt 0 ] || jobs=(setup fmt clippy test doc nostd foreign)
 for job in "${jobs[@]}"; do
     echo "== ci: $job"
     "$job"

@@ -58,7 +58,7 @@ pub fn profile(
 ) -> Option<Profiled> {
     let segments = segments(runs, residuals);
     let sample_hz = runs.first()?.sample_hz;
-    let grid = candidate.grid(sample_hz, context.slow_tau_min_s);
+    let grid = candidate.grid(sample_hz, context.slow_tau_min_s, context.resonance_min_hz);
     let fits: Vec<(Vec<(&'static str, f64)>, Fit)> = grid
         .par_iter()
         .filter_map(|hyper| {

@@ -139,9 +139,10 @@ impl Candidate {
     }
 
     /// Names of the nonlinear parameters profiled on a grid, with the grid; the vortex lag's
-    /// time constants start at `slow_tau_min_s` ([`Context::slow_tau_min_s`]).
+    /// time constants start at `slow_tau_min_s` ([`Context::slow_tau_min_s`]), the balance
+    /// mode's frequencies at `resonance_min_hz` ([`Context::resonance_min_hz`]).
     #[must_use]
-    pub fn grid(self, sample_hz: f64, slow_tau_min_s: f64) -> Vec<Vec<(&'static str, f64)>> {
+    pub fn grid(self, sample_hz: f64, slow_tau_min_s: f64, resonance_min_hz: f64) -> Vec<Vec<(&'static str, f64)>> {
         let dt_s = 1.0 / sample_hz;
         match self {
             Self::ActuatorDelay => log_grid(0.5 * dt_s, 0.25, 40).into_iter().map(|d| vec![("delay_s", d)]).collect(),
@@ -154,7 +155,7 @@ impl Candidate {
             Self::BalanceResonance => {
                 let top_hz = (0.35 * sample_hz).min(250.0);
                 let mut grid = Vec::new();
-                for freq in log_grid(2.0, top_hz, 60) {
+                for freq in log_grid(resonance_min_hz.min(0.5 * top_hz), top_hz, 60) {
                     for zeta in [0.01, 0.03, 0.1, 0.3] {
                         grid.push(vec![("freq_hz", freq), ("zeta", zeta)]);
                     }
@@ -203,6 +204,48 @@ pub struct Context<'a> {
     /// Shortest time constant of the vortex-lag candidate, s: twice the sim's own eGK lag, so
     /// that the candidate is a slower state, not the eGK's (or a rate damping) again.
     pub slow_tau_min_s: f64,
+    /// Lowest natural frequency of the balance-resonance candidate, Hz ([`resonance_min_hz`]).
+    pub resonance_min_hz: f64,
+}
+
+/// Lowest frequency the balance-resonance candidate may take, Hz: an octave above the motion's
+/// band, twice the frequency below which 99 % of the roll angle's variance lies (Welch PSD over
+/// the training parts of the rolling runs), and at least 2 Hz.
+///
+/// Why: below its natural frequency a mode driven by the load and the motion responds as their
+/// second derivatives scaled, so a "mode" inside or at the edge of the motion's band is an
+/// acceleration-like filter of the moment that can absorb an inertial tare or any structural
+/// error of the sim; it cannot be told from them. A balance built for dynamic tests has its
+/// first mode well above the motion it measures, or it would distort every reading the test is
+/// for. A mode that is really inside the band is left to the other candidates, or to
+/// `unattributed`.
+#[must_use]
+pub fn resonance_min_hz(runs: &[RunStreams]) -> f64 {
+    const FLOOR_HZ: f64 = 2.0;
+    // A missing sample counts as zero: a few of them barely move a spectrum.
+    let cleaned: Vec<Vec<f64>> = runs
+        .iter()
+        .filter(|run| run.rolls())
+        .map(|run| run.phi_rad[run.training.clone()].iter().map(|v| if v.is_finite() { *v } else { 0.0 }).collect())
+        .collect();
+    let segments: Vec<&[f64]> = cleaned.iter().map(Vec::as_slice).collect();
+    let Some(sample_hz) = runs.first().map(|run| run.sample_hz) else { return FLOOR_HZ };
+    let shortest = segments.iter().map(|segment| segment.len()).min().unwrap_or(0);
+    // Windows of about 4 s (0.25 Hz bins), shorter for short runs.
+    let window = ((4.0 * sample_hz) as usize).min(shortest / 2).max(4);
+    let Some(spectrum) = crate::diagnose::ledger::welch_psd(&segments, sample_hz, window) else { return FLOOR_HZ };
+    let total: f64 = spectrum.psd.iter().sum();
+    if total.is_nan() || total <= 0.0 {
+        return FLOOR_HZ;
+    }
+    let mut cumulative = 0.0;
+    for (freq_hz, power) in spectrum.freq_hz.iter().zip(&spectrum.psd) {
+        cumulative += power;
+        if cumulative >= 0.99 * total {
+            return (2.0 * freq_hz).max(FLOOR_HZ);
+        }
+    }
+    FLOOR_HZ
 }
 
 /// The regression columns of `candidate` at grid point `hyper` for run number `run_idx`; every

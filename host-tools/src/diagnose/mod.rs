@@ -209,6 +209,7 @@ pub fn diagnose(
             .iter()
             .map(|run| 2.0 * f64::from(estimator_core::egk::params_at(&set, run.alpha_deg as f32).tau1_s))
             .fold(0.05, f64::max),
+        resonance_min_hz: candidates::resonance_min_hz(&runs),
     };
 
     progress("profiling the balance candidates");
