@@ -6,7 +6,7 @@
 //! Everything is computed on the held-out part of every run (the part a fit never sees),
 //! replaying the recorded channels through the estimator that flies (estimator-core, f32).
 
-mod bootstrap;
+pub mod bootstrap;
 mod figures;
 mod metrics;
 mod pressure_information;

@@ -62,6 +62,13 @@ pub struct CouplingRun {
     pub validation: Range<usize>,
 }
 
+impl CouplingRun {
+    /// The whole training part: `train` and `validation` together.
+    fn training(&self) -> Range<usize> {
+        self.train.start..self.validation.end.max(self.train.end)
+    }
+}
+
 /// The admissible library with indicator thresholds for Cmu and the roll angle.
 pub fn coupling_library(degree: u8, cmu_threshold: f32, phi_threshold_rad: f32) -> Result<Library, FitError> {
     let mut library = Library::polynomial(&COUPLING_VARIABLES, degree, false)?;
@@ -97,7 +104,7 @@ pub fn fit_coupling(
     scored.selected =
         select_index(&scored, SelectBy::OneStep).ok_or(FitError::Internal("no coupling model eligible"))?;
     let support: Vec<bool> = scored.selected().point.coefficients.iter().map(|&c| c != 0.0).collect();
-    let (samples, targets) = rows(runs, |run| run.train.start..run.validation.end.max(run.train.end));
+    let (samples, targets) = rows(runs, CouplingRun::training);
     let coefficients = refit_support(&library.theta(&samples)?, &targets, &support)?;
     let model = library.to_sparse_model(&coefficients)?;
     let report = sparse_fit(library, &scored, SelectBy::OneStep, scored.selected, &coefficients, targets.len());

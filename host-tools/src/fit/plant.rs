@@ -78,6 +78,13 @@ pub struct PlantRun<'a> {
     pub target: Vec<f64>,
 }
 
+impl PlantRun<'_> {
+    /// The whole training part: `train` and `validation` together.
+    fn training(&self) -> Range<usize> {
+        self.train.start..self.validation.end.max(self.train.end)
+    }
+}
+
 /// The paper's plant library: products up to degree 2 of `(C_l,AFC, Cmu, dCmu, alpha)`
 /// including the constant, without `C_l,AFC^2`, plus the alpha-interactions of degree 3; and
 /// the extension: `Cmu^3` (the jet's moment is sub-linear in Cmu, jet-flap theory's square
@@ -167,7 +174,7 @@ pub fn fit_plant(
     let filtered: Vec<Vec<f64>> = runs
         .iter()
         .map(|run| {
-            let end = run.train.end.max(run.validation.end).min(run.target.len());
+            let end = run.training().end.min(run.target.len());
             let mut smooth = zero_phase_lowpass(&run.target[..end], config.corner_hz, sample_hz);
             smooth.resize(run.target.len(), f64::NAN);
             smooth
@@ -175,7 +182,7 @@ pub fn fit_plant(
         .collect();
     let cmu_max = runs
         .iter()
-        .flat_map(|run| run.signals.cmu[side][run.train.start..run.validation.end.max(run.train.end)].iter().copied())
+        .flat_map(|run| run.signals.cmu[side][run.training()].iter().copied())
         .filter(|cmu| cmu.is_finite())
         .fold(0.0, f64::max);
     if cmu_max <= 0.0 {
@@ -195,7 +202,7 @@ pub fn fit_plant(
             best = Some(candidate);
         }
     }
-    let PoleSweep { shape, mut scored, .. } = best.ok_or(FitError::NoPlantModel { side })?;
+    let PoleSweep { shape, mut scored } = best.ok_or(FitError::NoPlantModel { side })?;
     let selected = scored.selected().point.coefficients.clone();
     // Output-error refinement of the selected support, kept when it also lowers the validation
     // free-run error (the error the core's open-loop plant makes).
@@ -209,14 +216,8 @@ pub fn fit_plant(
         point.heldout = after;
     }
     // The chosen structure refitted on the whole training part.
-    let whole: Vec<PlantRun<'_>> = runs
-        .iter()
-        .map(|run| PlantRun {
-            train: run.train.start..run.validation.end.max(run.train.end),
-            validation: 0..0,
-            ..run.clone()
-        })
-        .collect();
+    let whole: Vec<PlantRun<'_>> =
+        runs.iter().map(|run| PlantRun { train: run.training(), validation: 0..0, ..run.clone() }).collect();
     let (samples, targets) = increment_rows(&whole, &filtered, side, shape);
     let support: Vec<bool> = selected.iter().map(|&c| c != 0.0).collect();
     let mut coefficients = refit_support(&library.theta(&samples)?, &targets, &support)?;
