@@ -173,7 +173,7 @@ pub fn evaluate(
         notes.push("Table 1 needs roll, actuation and roll+actuation runs at one angle of attack".into());
     }
     let coupling: Vec<CouplingRow> =
-        alphas.iter().filter_map(|&alpha| coupling_row(dataset, &replayed, split, alpha, config.seed)).collect();
+        alphas.iter().filter_map(|&alpha| coupling_row(dataset, &replayed, split, alpha, Some(config.seed))).collect();
     let noise: Vec<(f64, f64)> = alphas
         .iter()
         .filter_map(|&alpha| noise_rms(dataset, &runs_at(dataset, None, alpha), split).map(|rms| (alpha, rms)))
@@ -233,12 +233,15 @@ fn pairs(
     (estimates, measured)
 }
 
+/// Tables 2 and 3 at `alpha_deg`, with bootstrap intervals drawn from `seed` when given (the
+/// noise sweep's rows go without: its table shows none, and they would cost more than the rest
+/// of the sweep).
 fn coupling_row(
     dataset: &Dataset,
     replayed: &Replayed,
     split: &Split,
     alpha_deg: f64,
-    seed: u64,
+    seed: Option<u64>,
 ) -> Option<CouplingRow> {
     let runs = runs_at(dataset, Some(RunKind::RollActuation), alpha_deg);
     if runs.is_empty() {
@@ -250,15 +253,19 @@ fn coupling_row(
     let (e_sindy, _) = norm_and_count(&operator, &measured);
     let errors: Vec<f64> = operator.iter().zip(&measured).map(|(o, m)| o - m).collect();
     let block = bootstrap::block_length(&errors);
-    let ratio_ci95 = bootstrap::interval(measured.len(), block, seed, |idx| {
-        let measured = bootstrap::gather(&measured, idx);
-        norm_and_count(&bootstrap::gather(&operator, idx), &measured).0
-            / norm_and_count(&bootstrap::gather(&linear, idx), &measured).0
+    let ratio_ci95 = seed.and_then(|seed| {
+        bootstrap::interval(measured.len(), block, seed, |idx| {
+            let measured = bootstrap::gather(&measured, idx);
+            norm_and_count(&bootstrap::gather(&operator, idx), &measured).0
+                / norm_and_count(&bootstrap::gather(&linear, idx), &measured).0
+        })
     });
-    let corr_change_ci95 = bootstrap::interval(measured.len(), block, seed, |idx| {
-        let measured = bootstrap::gather(&measured, idx);
-        correlation(&bootstrap::gather(&operator, idx), &measured)
-            - correlation(&bootstrap::gather(&linear, idx), &measured)
+    let corr_change_ci95 = seed.and_then(|seed| {
+        bootstrap::interval(measured.len(), block, seed, |idx| {
+            let measured = bootstrap::gather(&measured, idx);
+            correlation(&bootstrap::gather(&operator, idx), &measured)
+                - correlation(&bootstrap::gather(&linear, idx), &measured)
+        })
     });
     Some(CouplingRow {
         alpha_deg,
@@ -358,7 +365,7 @@ fn noise_sweep(dataset: &Dataset, set: &CoefficientSet, config: &EvaluationConfi
             let per_alpha = noisy
                 .alphas_deg()
                 .iter()
-                .filter_map(|&alpha| coupling_row(&noisy, &replayed, &config.split, alpha, config.seed))
+                .filter_map(|&alpha| coupling_row(&noisy, &replayed, &config.split, alpha, None))
                 .collect();
             Ok(NoiseRow { sigma, per_alpha })
         })
