@@ -578,20 +578,16 @@ fn print_evaluation(evaluation: &host_tools::evaluate::Evaluation) {
     println!(
         "Tables 2 and 3 (held-out): alpha, E_SINDy/E_lin [95 % interval], corr linear, corr operator, change [95 % interval]"
     );
-    let ratio_interval =
-        |ci: Option<[f64; 2]>| ci.map_or_else(|| "[-]".to_owned(), |[low, high]| format!("[{low:.3}, {high:.3}]"));
-    let change_interval =
-        |ci: Option<[f64; 2]>| ci.map_or_else(|| "[-]".to_owned(), |[low, high]| format!("[{low:+.2e}, {high:+.2e}]"));
     for row in &evaluation.coupling {
         println!(
             "  {:>5.1}  {:>6.3} {:<14}  {:>9.6}  {:>9.6}  {:+.2e} {}",
             row.alpha_deg,
             row.ratio,
-            ratio_interval(row.ratio_ci95),
+            bracketed(row.ratio_ci95, |v| format!("{v:.3}")),
             row.corr_linear,
             row.corr_operator,
             row.corr_operator - row.corr_linear,
-            change_interval(row.corr_change_ci95)
+            bracketed(row.corr_change_ci95, |v| format!("{v:+.2e}"))
         );
     }
     println!("Blocks (held-out): alpha, block, RMS, correlation, RMS / balance noise");
@@ -605,15 +601,13 @@ fn print_evaluation(evaluation: &host_tools::evaluate::Evaluation) {
         "Fusion (roll runs, held-out): alpha, fused/eGK RMS [95 % interval], fused/pressure path RMS [95 % interval]"
     );
     for row in &evaluation.fusion {
-        let interval =
-            |ci: Option<[f64; 2]>| ci.map_or_else(|| "[-]".to_owned(), |[low, high]| format!("[{low:.4}, {high:.4}]"));
         println!(
             "  {:>5.1}  {:.4} {}  {:.4} {}",
             row.alpha_deg,
             row.over_egk,
-            interval(row.over_egk_ci95),
+            bracketed(row.over_egk_ci95, |v| format!("{v:.4}")),
             row.over_pressure,
-            interval(row.over_pressure_ci95)
+            bracketed(row.over_pressure_ci95, |v| format!("{v:.4}"))
         );
     }
     println!(
@@ -909,4 +903,9 @@ fn soak(args: SoakArgs) -> anyhow::Result<()> {
     );
     anyhow::ensure!(outcome.passed(), "the soak failed: an estimate was not finite or left the bound");
     Ok(())
+}
+
+/// A bootstrap interval as `[low, high]` with each end written by `each`, `[-]` without one.
+fn bracketed(interval: Option<[f64; 2]>, each: impl Fn(f64) -> String) -> String {
+    interval.map_or_else(|| "[-]".to_owned(), |[low, high]| format!("[{}, {}]", each(low), each(high)))
 }

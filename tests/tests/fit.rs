@@ -48,16 +48,26 @@ fn committed_default_model_is_the_fit_on_the_default_campaign() {
     }
 }
 
-fn short(kinds: &[RunKind]) -> firmware_sim::dataset::Dataset {
-    let scenario = Scenario {
-        duration_s: 12.0,
-        alphas_deg: vec![10.0],
+/// A recording of `kinds` at `alphas_deg`, `duration_s` per run, blowing from 1 s on.
+fn record(
+    duration_s: f64,
+    alphas_deg: &[f64],
+    kinds: &[RunKind],
+    sides: BlowingSides,
+) -> firmware_sim::dataset::Dataset {
+    let mut scenario = Scenario {
+        duration_s,
+        alphas_deg: alphas_deg.to_vec(),
         kinds: kinds.iter().map(|&kind| KindName(kind)).collect(),
+        blowing_sides: sides,
         ..Scenario::default()
     };
-    let mut scenario = scenario;
     scenario.excitation.blowing.delay_s = 1.0;
     scenario.simulate(&|| {}).expect("simulates")
+}
+
+fn short(kinds: &[RunKind]) -> firmware_sim::dataset::Dataset {
+    record(12.0, &[10.0], kinds, BlowingSides::Port)
 }
 
 #[test]
@@ -85,15 +95,7 @@ fn without_roll_plus_actuation_runs_the_coupling_operator_is_zero_and_said_so() 
 /// it must stay within 1.5 times.
 #[test]
 fn both_jets_blowing_together_are_told_apart() {
-    let mut scenario = Scenario {
-        duration_s: 30.0,
-        alphas_deg: vec![10.0],
-        kinds: vec![KindName(RunKind::Roll), KindName(RunKind::Actuation)],
-        blowing_sides: BlowingSides::Both,
-        ..Scenario::default()
-    };
-    scenario.excitation.blowing.delay_s = 1.0;
-    let dataset = scenario.simulate(&|| {}).expect("simulates");
+    let dataset = record(30.0, &[10.0], &[RunKind::Roll, RunKind::Actuation], BlowingSides::Both);
     let outcome = fit_dataset(&dataset, &FitConfig::default(), &|_| {}).expect("fits");
     let row = &outcome.report.heldout.per_alpha[0];
     let (plant, noise) = (row.plant_rms.expect("plant scored"), row.noise_rms.expect("noise estimated"));
@@ -104,14 +106,8 @@ fn both_jets_blowing_together_are_told_apart() {
 /// schedule holds up to `N_ALPHA` of them).
 #[test]
 fn five_angles_of_attack_get_five_breakpoints() {
-    let mut scenario = Scenario {
-        duration_s: 12.0,
-        alphas_deg: vec![0.0, 5.0, 10.0, 15.0, 20.0],
-        kinds: vec![KindName(RunKind::Roll), KindName(RunKind::Actuation)],
-        ..Scenario::default()
-    };
-    scenario.excitation.blowing.delay_s = 1.0;
-    let dataset = scenario.simulate(&|| {}).expect("simulates");
+    let alphas_deg = [0.0, 5.0, 10.0, 15.0, 20.0];
+    let dataset = record(12.0, &alphas_deg, &[RunKind::Roll, RunKind::Actuation], BlowingSides::Port);
     let outcome = fit_dataset(&dataset, &FitConfig::default(), &|_| {}).expect("fits");
     assert_eq!(outcome.set.n_alpha, 5);
     assert_eq!(&outcome.set.alpha_schedule_deg[..5], &[0.0, 5.0, 10.0, 15.0, 20.0]);
@@ -153,14 +149,7 @@ fn the_held_out_part_does_not_reach_the_fit() {
 /// roll runs.
 #[test]
 fn pressure_path_does_not_read_blowing_as_roll_moment() {
-    let mut scenario = Scenario {
-        duration_s: 20.0,
-        alphas_deg: vec![20.0],
-        kinds: vec![KindName(RunKind::Roll), KindName(RunKind::Actuation)],
-        ..Scenario::default()
-    };
-    scenario.excitation.blowing.delay_s = 1.0;
-    let dataset = scenario.simulate(&|| {}).expect("simulates");
+    let dataset = record(20.0, &[20.0], &[RunKind::Roll, RunKind::Actuation], BlowingSides::Port);
     let config = FitConfig::default();
     let outcome = fit_dataset(&dataset, &config, &|_| {}).expect("fits");
     let roll_error = outcome.report.heldout.per_alpha[0].pressure_rms.expect("pressure path scored");

@@ -6,24 +6,14 @@
 #
 #   tools/foreign-tunnel/other_seeds.sh [WORK_DIR]   (needs python3 with numpy and a release build)
 set -euo pipefail
-here="$(cd "$(dirname "$0")" && pwd)"
-root="$(cd "$here/../.." && pwd)"
-tools="${CARGO_TARGET_DIR:-$root/target}/release/host-tools"
-work="${1:-$(mktemp -d)}"
-mkdir -p "$work"
+source "$(dirname "$0")/common.sh"
 rm -rf "$work/clean" "$work/model"
-python3 "$here/foreign_tunnel.py" --out "$work/clean" --seed 1 2>/dev/null
+generate --out "$work/clean" --seed 1
 "$tools" fit --data "$work/clean" --out "$work/model" >/dev/null 2>&1
 seed=2
 for effect in none actuator_delay inertial_tare gravity_tare roll_damping bias_drift; do
-    rm -rf "$work/$effect" "$work/diagnosis-$effect"
-    python3 "$here/foreign_tunnel.py" --out "$work/$effect" --seed "$seed" --effect "$effect" 2>/dev/null
-    "$tools" diagnose --real "$work/$effect" --model "$work/model" --report "$work/diagnosis-$effect" >/dev/null 2>&1
-    python3 - "$work/diagnosis-$effect/diagnosis.json" "$effect" "$seed" <<'PY'
-import json, sys
-d = json.load(open(sys.argv[1]))
-named = ", ".join(f"{e['name']} (shrink {e['shrink']:.2f})" for e in d["effects"]) or "-"
-print(f"seed {sys.argv[3]}, injected {sys.argv[2]}: {d['verdict']}: {named}")
-PY
+    rm -rf "$work/$effect"
+    generate --out "$work/$effect" --seed "$seed" --effect "$effect"
+    echo "seed $seed, injected $effect: $(diagnosis "$work/$effect" "$work/model" "$work/diagnosis-$effect")"
     seed=$((seed + 1))
 done

@@ -68,7 +68,7 @@ fn coupling_tables(evaluation: &Evaluation) -> Section {
                 e3(row.e_lin),
                 e3(row.e_sindy),
                 f3(row.ratio),
-                row.ratio_ci95.map_or_else(|| "-".into(), |[low, high]| format!("{low:.3} .. {high:.3}")),
+                span(row.ratio_ci95, |v| format!("{v:.3}")),
                 row.n_samples.to_string(),
             ]
         })
@@ -82,7 +82,7 @@ fn coupling_tables(evaluation: &Evaluation) -> Section {
                 format!("{:.6}", row.corr_linear),
                 format!("{:.6}", row.corr_operator),
                 format!("{:+.2e}", row.corr_operator - row.corr_linear),
-                row.corr_change_ci95.map_or_else(|| "-".into(), |[low, high]| format!("{low:+.2e} .. {high:+.2e}")),
+                span(row.corr_change_ci95, |v| format!("{v:+.2e}")),
             ]
         })
         .collect();
@@ -161,7 +161,6 @@ fn blocks(evaluation: &Evaluation) -> Section {
             ]
         })
         .collect();
-    let interval = |ci: Option<[f64; 2]>| ci.map_or_else(|| "-".into(), |[low, high]| format!("{low:.4} .. {high:.4}"));
     let fusion = evaluation
         .fusion
         .iter()
@@ -169,9 +168,9 @@ fn blocks(evaluation: &Evaluation) -> Section {
             vec![
                 format!("{}", row.alpha_deg),
                 format!("{:.4}", row.over_egk),
-                interval(row.over_egk_ci95),
+                span(row.over_egk_ci95, |v| format!("{v:.4}")),
                 format!("{:.4}", row.over_pressure),
-                interval(row.over_pressure_ci95),
+                span(row.over_pressure_ci95, |v| format!("{v:.4}")),
             ]
         })
         .collect();
@@ -218,4 +217,9 @@ fn blocks(evaluation: &Evaluation) -> Section {
         ],
         figures: vec![],
     }
+}
+
+/// A bootstrap interval as `low .. high` with each end written by `each`, `-` without one.
+fn span(interval: Option<[f64; 2]>, each: impl Fn(f64) -> String) -> String {
+    interval.map_or_else(|| "-".to_owned(), |[low, high]| format!("{} .. {}", each(low), each(high)))
 }

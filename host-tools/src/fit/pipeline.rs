@@ -330,17 +330,18 @@ fn fit_pressure(
         .runs
         .iter()
         .zip(signals)
-        .map(|(run, signals)| {
-            (run.meta.kind == RunKind::Actuation).then(|| {
-                let alpha_deg = run.meta.alpha_deg;
-                simulate(&params_at(set, alpha_deg as f32), alpha_deg, f64::from(set.dt_s), signals)
-            })
-        })
+        .map(|(run, signals)| (run.meta.kind == RunKind::Actuation).then(|| egk_moment(set, run, signals)))
         .collect();
     let runs = pressure_runs(dataset, signals, &held, &config.split)?;
     let n_alpha = usize::from(set.n_alpha).clamp(1, N_ALPHA);
     let breakpoints: Vec<f64> = set.alpha_schedule_deg[..n_alpha].iter().map(|&deg| f64::from(deg)).collect();
     Ok(fit_pressure_model(&runs, &config.pressure, &breakpoints)?)
+}
+
+/// The fitted eGK's moment over a whole run (f64), at the run's angle of attack.
+fn egk_moment(set: &CoefficientSet, run: &Run, signals: &RunSignals) -> Vec<f64> {
+    let alpha_deg = run.meta.alpha_deg;
+    simulate(&params_at(set, alpha_deg as f32), alpha_deg, f64::from(set.dt_s), signals)
 }
 
 /// Fusion on the training part of the roll runs, from the f64 eGK and pressure path.
@@ -355,12 +356,7 @@ fn fit_fusion_on(
     let mut outputs = Vec::new();
     for &idx in roll {
         let run = &dataset.runs[idx];
-        let egk = simulate(
-            &params_at(set, run.meta.alpha_deg as f32),
-            run.meta.alpha_deg,
-            f64::from(set.dt_s),
-            &signals[idx],
-        );
+        let egk = egk_moment(set, run, &signals[idx]);
         let full =
             PressureRun::from_signals(&signals[idx], &run.channels, 0..signals[idx].len(), Some(&run.channels.cl))?;
         let pressure = run_pressure_filter(pressure, &full)?;
