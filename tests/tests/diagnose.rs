@@ -7,7 +7,7 @@ use std::sync::OnceLock;
 use estimator_core::CoefficientSet;
 use firmware_sim::campaign::Scenario;
 use firmware_sim::dataset::Dataset;
-use firmware_sim::tunnel::effects::{Effects, FaultMode, InertialTare, PressureFault};
+use firmware_sim::tunnel::effects::{Effects, FaultMode, InertialTare, PressureFault, PressureLag};
 use host_tools::diagnose::{DiagnoseConfig, Signature, diagnose, signature};
 use host_tools::fit::pipeline::{FitConfig, fit_dataset};
 use host_tools::validate::{CampaignConfig, effect_ratio, run_campaign, score};
@@ -139,4 +139,30 @@ fn recording_at_another_rate_is_refused_naming_the_run() {
     let error = diagnose(&dataset, Some((&set, "built-in".into())), &DiagnoseConfig::default(), &|_| {}).unwrap_err();
     let message = error.to_string();
     assert!(message.contains("runs/") && message.contains("500") && message.contains("1000"), "{message}");
+}
+
+/// The default campaign (seed 1, three angles of attack, 50 s runs) with every pressure channel
+/// lagged by 50 ms (tubing), diagnosed against the built-in model and its signature:
+/// `pressure_lag` is named with all twelve channels and a time constant within 20 %. The
+/// filter's innovations alone cannot see such a lag (the filter follows the lagged readings).
+#[test]
+fn lag_of_every_pressure_channel_is_named_with_all_channels_and_its_time_constant() {
+    let tau_s = 0.05;
+    let mut scenario = Scenario::default();
+    scenario.effects.pressure_lag = Some(PressureLag { tau_s, channels: Vec::new() });
+    let mut dataset = scenario.simulate(&|| {}).expect("simulates");
+    dataset.extra.clear();
+    let set = estimator_core::coeffs::DEFAULT;
+    let config =
+        DiagnoseConfig { signature: Some(host_tools::diagnose::default_signature()), ..DiagnoseConfig::default() };
+    let diagnosis = diagnose(&dataset, Some((&set, "built-in".into())), &config, &|_| {}).expect("diagnoses").0;
+    assert_eq!(diagnosis.verdict.as_str(), "effect");
+    let top = &diagnosis.effects[0];
+    assert_eq!(top.name, "pressure_lag", "{:?}", diagnosis.effects);
+    assert_eq!(diagnosis.where_.block.as_deref(), Some("sensor"));
+    let expected: Vec<String> = (1..=12).map(|tap| format!("cp{tap:02}")).collect();
+    assert_eq!(diagnosis.where_.channels, expected);
+    let fitted = top.params["tau_s"].as_f64().unwrap();
+    assert!((fitted / tau_s - 1.0).abs() < 0.2, "fitted {fitted} s vs {tau_s} s");
+    assert!(top.shrink > 0.5, "{top:?}");
 }

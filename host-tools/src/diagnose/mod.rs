@@ -20,6 +20,7 @@ pub mod attribution;
 pub mod candidates;
 pub mod gap_ledger;
 pub mod ledger;
+pub mod pressure_lag;
 pub mod regression;
 pub mod report;
 pub mod result;
@@ -92,6 +93,11 @@ pub struct Signature {
     /// Gap beyond noise per kind of run (mean square over the noise variance), keyed by the
     /// kind (`roll`) and by kind and angle of attack (`roll@20`).
     pub gap_to_noise_by_kind: BTreeMap<String, f64>,
+    /// The time constant that best aligns the taps with the balance moment on data the sim
+    /// matches, s ([`pressure_lag`]): the rig's tubing and the sim's own map; a lag counts
+    /// beyond it.
+    #[serde(default)]
+    pub pressure_alignment_s: Option<f64>,
 }
 
 /// File name of a model's signature in its folder.
@@ -261,11 +267,8 @@ pub fn diagnose(
         .iter()
         .map(|(group, value)| value - floor.probe_to_noise.get(group).copied().unwrap_or(0.0))
         .fold(0.0, f64::max);
-    let sensor = sensor::findings(&runs);
-    let sensor_excess = |f: &SensorFinding| {
-        let key = format!("{}:{}", f.name, f.channel.as_deref().unwrap_or("all"));
-        f.explained / f.noise_var.max(f64::MIN_POSITIVE) - floor.of(&key)
-    };
+    let sensor = sensor::findings(&runs, floor.pressure_alignment_s.unwrap_or(0.0));
+    let sensor_excess = |f: &SensorFinding| f.explained / f.noise_var.max(f64::MIN_POSITIVE) - floor.of(&f.floor_key());
     let min_ratio = MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE;
     let mut sensor_ranked: Vec<&SensorFinding> = sensor
         .iter()
@@ -318,16 +321,13 @@ pub fn diagnose(
         explained_to_noise: first_round
             .iter()
             .map(|p| (p.candidate.name().to_owned(), to_noise(p.explained())))
-            .chain(sensor.iter().map(|f| {
-                (
-                    format!("{}:{}", f.name, f.channel.as_deref().unwrap_or("all")),
-                    f.explained.min(1e12) / f.noise_var.max(f64::MIN_POSITIVE),
-                )
-            }))
+            .chain(sensor.iter().map(|f| (f.floor_key(), f.explained.min(1e12) / f.noise_var.max(f64::MIN_POSITIVE))))
             .filter(|(_, value)| value.is_finite())
             .collect(),
         probe_to_noise: probe_base,
         gap_to_noise_by_kind: gap_by_kind,
+        pressure_alignment_s: pressure_lag::Alignment::new(&runs, |run| run.training.clone())
+            .map(|alignment| alignment.shared()),
     };
 
     let balance_strength = named.first().map_or(0.0, &excess);
@@ -346,6 +346,7 @@ pub fn diagnose(
         effects.push(sensor_effect(finding));
         where_.block = Some("sensor".into());
         where_.channel = finding.channel.clone();
+        where_.channels = finding.channels.clone();
         where_.alpha_deg = alphas(&runs, &vec![true; runs.len()]);
     } else if !named.is_empty() && !remainder_structured {
         verdict = Verdict::Effect;
@@ -549,6 +550,7 @@ fn sensor_effect(finding: &SensorFinding) -> EffectResult {
     if let Some(channel) = &finding.channel {
         params.insert("channel".into(), serde_json::json!(channel));
     }
+    params.insert("channels".into(), serde_json::json!(finding.channels));
     let dead = finding.heldout.n == 0;
     EffectResult {
         name: finding.name.into(),

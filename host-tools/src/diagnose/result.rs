@@ -100,6 +100,8 @@ pub struct Where {
     pub band_hz: Option<[f64; 2]>,
     /// The pressure channel, when the gap lies in one sensor.
     pub channel: Option<String>,
+    /// Every pressure channel the gap lies in, for a sensor effect (one, some or all twelve).
+    pub channels: Vec<String>,
     /// The runs the gap lies in.
     pub runs: Vec<String>,
     /// Regime shares of the residual energy (the gap ledger's summary).

@@ -22,6 +22,8 @@ pub struct SensorFinding {
     pub params: Vec<(String, ParamValue)>,
     /// The channel, for a single-channel finding (`cp07`).
     pub channel: Option<String>,
+    /// Every channel the finding concerns (one for a fault; one, some or all for a lag).
+    pub channels: Vec<String>,
     /// Mean square the finding explains per affected training sample, Cp^2.
     pub explained: f64,
     /// Noise variance of the affected channels' innovations, Cp^2.
@@ -49,18 +51,29 @@ pub fn channel_name(tap: usize) -> String {
     format!("cp{:02}", tap + 1)
 }
 
-/// Every sensor finding, strongest first.
+/// Every sensor finding, strongest first. `reference_tau_s` is the sim's own alignment of the
+/// taps with the balance ([`super::pressure_lag::finding`]).
 #[must_use]
-pub fn findings(runs: &[RunStreams]) -> Vec<SensorFinding> {
+pub fn findings(runs: &[RunStreams], reference_tau_s: f64) -> Vec<SensorFinding> {
     let n_taps = runs.first().map_or(0, |run| run.cp.len());
     let mut out = Vec::new();
     if n_taps == 0 {
         return out;
     }
+    out.extend(super::pressure_lag::finding(runs, reference_tau_s));
     out.extend(lag_findings(runs, n_taps));
     out.extend((0..n_taps).filter_map(|tap| fault_finding(runs, tap, n_taps)));
     out.sort_by(|a, b| strength(b).total_cmp(&strength(a)));
     out
+}
+
+impl SensorFinding {
+    /// Its key in the sim's signature: the name and the channel, or `aligned` for a lag of
+    /// several channels.
+    #[must_use]
+    pub fn floor_key(&self) -> String {
+        format!("{}:{}", self.name, self.channel.as_deref().unwrap_or("aligned"))
+    }
 }
 
 /// Strength of a finding in noise units: explained mean square over the noise variance.
@@ -95,8 +108,10 @@ fn lag_column(run: &RunStreams, tap: usize, tau_s: f64) -> Vec<f64> {
     lagged.iter().zip(&held).map(|(l, e)| l - e).collect()
 }
 
-/// The lag candidate: all channels with one time constant, or the single channel that gains
-/// most; whichever has the better complexity-penalised evidence. The time constant is profiled.
+/// The single-channel lag on the innovations: the channel and time constant that explain most.
+/// With the other eleven channels unlagged, the filter's modes follow them and the lagged
+/// channel's innovation shows its lag; a lag common to many channels is the alignment's
+/// ([`super::pressure_lag`]), which the innovations cannot see.
 fn lag_findings(runs: &[RunStreams], n_taps: usize) -> Vec<SensorFinding> {
     let Some(sample_hz) = runs.first().map(|run| run.sample_hz) else {
         return Vec::new();
@@ -117,23 +132,6 @@ fn lag_findings(runs: &[RunStreams], n_taps: usize) -> Vec<SensorFinding> {
         })
         .collect();
     let mut out = Vec::new();
-    // All channels: the time constant with the smallest pooled residual, each channel with its
-    // own gain (the filter's correction absorbs a different share of each channel's lag).
-    let pooled_ssr = |fits: &Vec<Option<regression::Fit>>| fits.iter().flatten().map(|fit| fit.ssr).sum::<f64>();
-    if let Some((best, _)) = per_tau.iter().enumerate().min_by(|a, b| pooled_ssr(a.1).total_cmp(&pooled_ssr(b.1))) {
-        let tau_s = grid[best];
-        let (mut segments, mut columns) = (Vec::new(), Vec::new());
-        for tap in 0..n_taps {
-            segments.extend(segments_of(runs, tap));
-            columns.extend(runs.iter().map(|run| {
-                let own = lag_column(run, tap, tau_s);
-                (0..n_taps).map(|slot| if slot == tap { own.clone() } else { vec![0.0; own.len()] }).collect::<Vec<_>>()
-            }));
-        }
-        if let Some(fit) = regression::fit_through_origin(&segments, &columns) {
-            out.push(lag_finding(&segments, &columns, &fit, tau_s, None, n_taps + 1));
-        }
-    }
     // One channel: the channel and time constant that explain most.
     let mut best_one: Option<(usize, usize, f64)> = None;
     for (tau_idx, fits) in per_tau.iter().enumerate() {
@@ -179,6 +177,7 @@ fn lag_finding(
             ("channels".into(), ParamValue::Text(channels.clone())),
         ],
         channel: tap.map(channel_name),
+        channels: tap.map(channel_name).into_iter().collect(),
         explained: fit.explained_per_sample(),
         noise_var,
         delta_bic: delta_bic(fit, autocorrelation, k),
@@ -231,6 +230,7 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
                 ("missing_fraction".into(), ParamValue::Number(missing_fraction)),
             ],
             channel: Some(name.clone()),
+            channels: vec![name.clone()],
             // A dead channel carries no reading: its whole signal is the gap.
             explained: f64::INFINITY,
             noise_var,
@@ -269,6 +269,7 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
                 ("constant_for_s".into(), ParamValue::Number(stuck_len_s)),
             ],
             channel: Some(name.clone()),
+            channels: vec![name.clone()],
             explained: fit.explained_per_sample(),
             noise_var,
             delta_bic: f64::INFINITY,
@@ -318,6 +319,7 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
                 ("spike_rate_hz".into(), ParamValue::Number(count as f64 / duration_s.max(f64::MIN_POSITIVE))),
             ],
             channel: Some(name.clone()),
+            channels: vec![name.clone()],
             explained: if delta > 0.0 { fit.explained_per_sample() } else { 0.0 },
             noise_var,
             delta_bic: delta,
@@ -337,6 +339,7 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
             ("start_s".into(), ParamValue::Number(onset_s)),
         ],
         channel: Some(name.clone()),
+        channels: vec![name.clone()],
         explained: fit.explained_per_sample(),
         noise_var,
         delta_bic: delta_bic(&fit, tau, 2),

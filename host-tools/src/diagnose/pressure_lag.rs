@@ -1,0 +1,367 @@
+//! The `pressure_lag` family: a first-order lag of the pressure channels (tubing, transducer),
+//! on every channel, on a group of them or on one, each with its own or a shared time constant
+//! (gap-diagnosis.md section 2.6; shared/spec/diagnosis.md).
+//!
+//! Why the balance is the reference: a lagged channel reads `y` with `tau y' + y = p`, the
+//! true pressure `p`; the pressure filter's one-step innovations hide such a lag, because the
+//! filter follows the lagged readings (on the default campaign with every channel lagged by
+//! 50 ms the innovations held 0.015 noise variances of it). The roll moment the balance reads
+//! is the integral of the surface pressures at the same instant, so the taps map to the
+//! balance moment without delay: a lag shows as the time constant that best re-aligns them.
+//! The inverse of the lag is exact, `p = y + tau y'`, so for every choice of time constants
+//! the balance is regressed on the de-lagged taps, and the residual sum of squares is profiled
+//! over them.
+//!
+//! The derivative of every channel is taken once (zero-phase smoothed, [`RunStreams::cp_dot`]);
+//! the de-lagged taps are then linear in the time constants, so the Gram matrix of taps,
+//! derivatives and nuisance columns, accumulated once per angle of attack, gives the residual
+//! sum of squares for any vector of time constants in microseconds. That makes the per-channel
+//! search (coordinate descent over twelve time constants) and the comparison of hypotheses
+//! (all channels with one time constant, some channels, one channel) cheap.
+
+use std::collections::BTreeMap;
+
+use nalgebra::{DMatrix, DVector};
+
+use super::regression::{self, Segment};
+use super::sensor::{ParamValue, SensorFinding, channel_name};
+use super::streams::RunStreams;
+
+/// Shortest and longest time constant searched, s: from a lead (the sim's own alignment can sit
+/// slightly below zero) to a third of a second, beyond any tubing a rig would fly with
+/// (gap-diagnosis.md section 2.6: tens of milliseconds for metres of tube).
+pub const TAU_RANGE_S: (f64, f64) = (-0.02, 0.35);
+
+/// A channel with fewer finite samples than this share of its training part takes no part in
+/// the alignment (a dead channel is the fault candidate's).
+const MIN_FINITE_SHARE: f64 = 0.5;
+
+/// Per angle of attack: the Gram matrix of `[cp_1..cp_T, cp_dot_1..cp_dot_T, nuisance]` and
+/// its products with the balance moment, over the samples of one part of every run, centred
+/// per run.
+#[derive(Debug, Clone)]
+pub struct Alignment {
+    taps: Vec<usize>,
+    groups: Vec<Group>,
+}
+
+#[derive(Debug, Clone)]
+struct Group {
+    alpha_key: i64,
+    gram: DMatrix<f64>,
+    cross: DVector<f64>,
+    yy: f64,
+    n: usize,
+}
+
+/// The nuisance columns besides the taps: the sim's plant moment (the jets move the balance
+/// and the taps in their own way).
+const N_NUISANCE: usize = 1;
+
+impl Alignment {
+    /// Accumulates the Gram matrices over the samples `part(run)` of every run, per angle of
+    /// attack; `None` without two usable channels or samples.
+    #[must_use]
+    pub fn new(runs: &[RunStreams], part: impl Fn(&RunStreams) -> std::ops::Range<usize>) -> Option<Self> {
+        let n_taps = runs.first()?.cp.len();
+        let taps: Vec<usize> = (0..n_taps)
+            .filter(|&tap| {
+                let (mut finite, mut total) = (0usize, 0usize);
+                for run in runs {
+                    for idx in part(run) {
+                        total += 1;
+                        finite += usize::from(run.cp[tap][idx].is_finite());
+                    }
+                }
+                total > 0 && finite as f64 >= MIN_FINITE_SHARE * total as f64
+            })
+            .collect();
+        if taps.len() < 2 {
+            return None;
+        }
+        let width = 2 * taps.len() + N_NUISANCE;
+        let mut by_alpha: BTreeMap<i64, Group> = BTreeMap::new();
+        for run in runs {
+            let afc = run.cl_afc();
+            let rows: Vec<usize> = part(run)
+                .filter(|&idx| {
+                    run.cl_measured[idx].is_finite()
+                        && taps.iter().all(|&tap| run.cp[tap][idx].is_finite() && run.cp_dot[tap][idx].is_finite())
+                })
+                .collect();
+            if rows.len() < 2 {
+                continue;
+            }
+            let column = |col: usize, idx: usize| -> f64 {
+                if col < taps.len() {
+                    run.cp[taps[col]][idx]
+                } else if col < 2 * taps.len() {
+                    run.cp_dot[taps[col - taps.len()]][idx]
+                } else {
+                    afc[idx]
+                }
+            };
+            let count = rows.len() as f64;
+            let means: Vec<f64> =
+                (0..width).map(|col| rows.iter().map(|&i| column(col, i)).sum::<f64>() / count).collect();
+            let y_mean = rows.iter().map(|&i| run.cl_measured[i]).sum::<f64>() / count;
+            let alpha_key = alpha_key(run.alpha_deg);
+            let group = by_alpha.entry(alpha_key).or_insert_with(|| Group {
+                alpha_key,
+                gram: DMatrix::zeros(width, width),
+                cross: DVector::zeros(width),
+                yy: 0.0,
+                n: 0,
+            });
+            let mut row = vec![0.0; width];
+            for &idx in &rows {
+                for (col, slot) in row.iter_mut().enumerate() {
+                    *slot = column(col, idx) - means[col];
+                }
+                let y = run.cl_measured[idx] - y_mean;
+                for a in 0..width {
+                    group.cross[a] += row[a] * y;
+                    for b in a..width {
+                        group.gram[(a, b)] += row[a] * row[b];
+                    }
+                }
+                group.yy += y * y;
+            }
+            group.n += rows.len();
+        }
+        let mut groups: Vec<Group> = by_alpha.into_values().collect();
+        for group in &mut groups {
+            for a in 0..width {
+                for b in 0..a {
+                    group.gram[(a, b)] = group.gram[(b, a)];
+                }
+            }
+        }
+        (!groups.is_empty()).then_some(Self { taps, groups })
+    }
+
+    /// The channels that take part (0-based taps).
+    #[must_use]
+    pub fn taps(&self) -> &[usize] {
+        &self.taps
+    }
+
+    /// Samples.
+    #[must_use]
+    pub fn n(&self) -> usize {
+        self.groups.iter().map(|g| g.n).sum()
+    }
+
+    /// Residual sum of squares of the balance on the de-lagged taps `cp + tau cp_dot` (one time
+    /// constant per channel of [`Self::taps`]) and the nuisance columns, each angle of attack
+    /// with its own weights.
+    #[must_use]
+    pub fn ssr(&self, tau_s: &[f64]) -> f64 {
+        self.groups.iter().map(|group| self.solve(group, tau_s).1).sum()
+    }
+
+    /// Weights of `[cp + tau cp_dot, nuisance]` and the residual sum of squares of one group.
+    fn solve(&self, group: &Group, tau_s: &[f64]) -> (DVector<f64>, f64) {
+        let n_taps = self.taps.len();
+        let width = n_taps + N_NUISANCE;
+        // X = Z M^T with M mapping [cp, cp_dot, nuisance] to [cp + tau cp_dot, nuisance].
+        let m = DMatrix::from_fn(width, 2 * n_taps + N_NUISANCE, |row, col| {
+            if row < n_taps {
+                if col == row {
+                    1.0
+                } else if col == row + n_taps {
+                    tau_s[row]
+                } else {
+                    0.0
+                }
+            } else {
+                f64::from(u8::from(col == row + n_taps))
+            }
+        });
+        let xtx = &m * &group.gram * m.transpose();
+        let xty = &m * &group.cross;
+        // A whisper of ridge keeps collinear taps solvable without moving the fit.
+        let ridge = 1e-12 * xtx.trace().max(f64::MIN_POSITIVE) / width as f64;
+        let regularised = xtx + DMatrix::identity(width, width) * ridge;
+        let weights = regularised.cholesky().map_or_else(|| DVector::zeros(width), |chol| chol.solve(&xty));
+        let ssr = (group.yy - xty.dot(&weights)).max(0.0);
+        (weights, ssr)
+    }
+
+    /// The residual of the balance on the de-lagged taps over `part(run)` of every run (NaN
+    /// where a sample is unusable), each run centred: for the effective number of samples.
+    #[must_use]
+    pub fn residuals(
+        &self,
+        runs: &[RunStreams],
+        part: impl Fn(&RunStreams) -> std::ops::Range<usize>,
+        tau_s: &[f64],
+    ) -> Vec<Vec<f64>> {
+        let n_taps = self.taps.len();
+        runs.iter()
+            .map(|run| {
+                let Some(group) = self.groups.iter().find(|g| g.alpha_key == alpha_key(run.alpha_deg)) else {
+                    return Vec::new();
+                };
+                let (weights, _) = self.solve(group, tau_s);
+                let afc = run.cl_afc();
+                let raw: Vec<f64> = part(run)
+                    .map(|idx| {
+                        let mut predicted = weights[n_taps] * afc[idx];
+                        for (col, &tap) in self.taps.iter().enumerate() {
+                            predicted += weights[col] * (run.cp[tap][idx] + tau_s[col] * run.cp_dot[tap][idx]);
+                        }
+                        run.cl_measured[idx] - predicted
+                    })
+                    .collect();
+                let finite: Vec<f64> = raw.iter().copied().filter(|v| v.is_finite()).collect();
+                let mean = finite.iter().sum::<f64>() / finite.len().max(1) as f64;
+                raw.into_iter().map(|v| v - mean).collect()
+            })
+            .collect()
+    }
+
+    /// The one time constant for every channel that re-aligns the taps with the balance best
+    /// (grid, then golden-section refinement).
+    #[must_use]
+    pub fn shared(&self) -> f64 {
+        let n = self.taps.len();
+        minimise(|tau| self.ssr(&vec![tau; n]), TAU_RANGE_S)
+    }
+}
+
+fn alpha_key(alpha_deg: f64) -> i64 {
+    (alpha_deg * 1e3).round() as i64
+}
+
+/// Minimises `f` over `range`: a grid of 48 points, then golden-section search in the bracket
+/// around the best.
+fn minimise(mut f: impl FnMut(f64) -> f64, range: (f64, f64)) -> f64 {
+    const GRID: usize = 48;
+    let (low, high) = range;
+    let step = (high - low) / (GRID - 1) as f64;
+    let values: Vec<f64> = (0..GRID).map(|i| f(low + step * i as f64)).collect();
+    let best = values.iter().enumerate().min_by(|a, b| a.1.total_cmp(b.1)).map_or(0, |(i, _)| i);
+    let (mut a, mut b) = (low + step * best.saturating_sub(1) as f64, low + step * (best + 1).min(GRID - 1) as f64);
+    let ratio = 0.5 * (5f64.sqrt() - 1.0);
+    let (mut c, mut d) = (b - ratio * (b - a), a + ratio * (b - a));
+    let (mut fc, mut fd) = (f(c), f(d));
+    for _ in 0..30 {
+        if fc < fd {
+            b = d;
+            d = c;
+            fd = fc;
+            c = b - ratio * (b - a);
+            fc = f(c);
+        } else {
+            a = c;
+            c = d;
+            fc = fd;
+            d = a + ratio * (b - a);
+            fd = f(d);
+        }
+    }
+    let refined = 0.5 * (a + b);
+    if f(refined) <= values[best] { refined } else { low + step * best as f64 }
+}
+
+/// The `pressure_lag` finding of the alignment: every channel lagged by one time constant, or
+/// `None` when the taps cannot be aligned with the balance. `reference_tau_s` is the sim's own
+/// alignment on the data it was fitted on (its signature: a rig's tubing and the sim's map sit a
+/// few milliseconds from zero); only time constants beyond it are a lag.
+///
+/// Only the common lag is taken from the balance: one time constant per channel is not
+/// identifiable this way (twelve correlated taps trade their lags against each other: on a
+/// clean recording single channels came out 10 to 15 ms off, on a 50 ms lag of every channel
+/// from 40 to 136 ms). A lag of one channel is the innovations' ([`super::sensor`]), where the
+/// other channels hold the filter.
+#[must_use]
+pub fn finding(runs: &[RunStreams], reference_tau_s: f64) -> Option<SensorFinding> {
+    let alignment = Alignment::new(runs, |run| run.training.clone())?;
+    let n_taps = alignment.taps().len();
+    let ssr_reference = alignment.ssr(&vec![reference_tau_s; n_taps]);
+    let shared = alignment.shared();
+    if shared <= reference_tau_s {
+        return None;
+    }
+    let taus = vec![shared; n_taps];
+    let residuals = alignment.residuals(runs, |run| run.training.clone(), &taus);
+    let segments: Vec<Segment<'_>> =
+        residuals.iter().map(|r| Segment { residual: r, training: 0..r.len(), heldout: 0..0 }).collect();
+    let n_eff = alignment.n() as f64 / regression::integrated_autocorrelation(&segments, 200);
+    if n_eff < 2.0 || ssr_reference <= 0.0 {
+        return None;
+    }
+    let delta_bic = n_eff * (ssr_reference / alignment.ssr(&taus).max(f64::MIN_POSITIVE)).ln() - n_eff.ln();
+    let lag_s = shared - reference_tau_s;
+    // The lag's deviation from the true pressure is `-tau y'` (exact for a first-order lag):
+    // its mean square over the channels' samples of one part.
+    let deviation = |part: &dyn Fn(&RunStreams) -> std::ops::Range<usize>, tau_s: f64| {
+        let (mut sum, mut n) = (0.0, 0usize);
+        for run in runs {
+            for &tap in alignment.taps() {
+                for idx in part(run) {
+                    let value = tau_s * run.cp_dot[tap][idx];
+                    if value.is_finite() {
+                        sum += value * value;
+                        n += 1;
+                    }
+                }
+            }
+        }
+        (if n == 0 { 0.0 } else { sum / n as f64 }, n)
+    };
+    let (explained, _) = deviation(&|run| run.training.clone(), lag_s);
+    let noise_var = {
+        let mut differences = Vec::new();
+        for run in runs {
+            for &tap in alignment.taps() {
+                let cp = &run.cp[tap];
+                differences.extend(run.training.clone().skip(1).map(|i| cp[i] - cp[i - 1]).filter(|d| d.is_finite()));
+            }
+        }
+        regression::robust_difference_var(&mut differences)
+    };
+    // Held out: the lag the held-out part shows on its own against the training estimate, as
+    // deviations in Cp (no noise in either: they are the lag's own deviations).
+    let heldout = Alignment::new(runs, |run| run.heldout.clone()).map_or(
+        regression::HeldoutGap { mse_before: 0.0, mse_after: 0.0, noise_var: 0.0, n: 0, floor_var: 0.0 },
+        |held| {
+            let tau_heldout = held.shared();
+            let (before, n) = deviation(&|run| run.heldout.clone(), (tau_heldout - reference_tau_s).max(0.0));
+            let (after, _) = deviation(&|run| run.heldout.clone(), tau_heldout.max(reference_tau_s) - shared);
+            regression::HeldoutGap { mse_before: before, mse_after: after, noise_var: 0.0, n, floor_var: 0.0 }
+        },
+    );
+    let names: Vec<String> = alignment.taps().iter().map(|&tap| channel_name(tap)).collect();
+    Some(SensorFinding {
+        name: "pressure_lag",
+        params: vec![
+            ("tau_s".to_owned(), ParamValue::Number(lag_s)),
+            ("channels".to_owned(), ParamValue::Text("all".into())),
+            ("reference_tau_s".to_owned(), ParamValue::Number(reference_tau_s)),
+        ],
+        channel: None,
+        channels: names,
+        explained,
+        noise_var,
+        delta_bic,
+        heldout,
+        evidence: format!(
+            "the taps align with the balance moment once every channel is de-lagged by {:.1} ms beyond the sim's own {:.1} ms",
+            1e3 * lag_s,
+            1e3 * reference_tau_s
+        ),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn minimise_finds_the_bottom_of_a_parabola_off_the_grid() {
+        let found = minimise(|x| (x - 0.0437).powi(2) + 1.0, TAU_RANGE_S);
+        assert!((found - 0.0437).abs() < 1e-6, "{found}");
+    }
+}
