@@ -392,7 +392,7 @@ impl Scenario {
         let mut extra = toml::Table::new();
         extra.insert("generator".into(), "firmware-sim synthetic wind tunnel".into());
         extra.insert("seed".into(), toml::Value::Integer(self.seed as i64 & i64::MAX));
-        let effects = self.effects.names_on().into_iter().map(toml::Value::from).collect();
+        let effects = self.effects.on().into_iter().map(|effect| toml::Value::from(effect.name())).collect();
         extra.insert("effects".into(), toml::Value::Array(effects));
         extra
     }

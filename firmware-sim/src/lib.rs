@@ -6,7 +6,8 @@
 //! than the estimator's model families. It writes datasets in the contract format of
 //! [`dataset`], which every tool reads.
 //!
-//! - [`tunnel`] (std): the physics, its effects and a stepping API for closed loops;
+//! - [`tunnel`] (std): the physics, its effects and a stepping API for closed loops; [`effect`]
+//!   (std): the effect vocabulary the tunnel, the diagnosis and the validation share;
 //!   [`campaign`] (std): scenarios and the paper's campaign;
 //! - [`dataset`] (std): the on-disk format (`shared/spec/dataset-format.md`); [`atomic`] (std):
 //!   folders written completely or not at all;
@@ -27,6 +28,8 @@ pub mod atomic;
 pub mod campaign;
 #[cfg(feature = "std")]
 pub mod dataset;
+#[cfg(feature = "std")]
+pub mod effect;
 #[cfg(feature = "std")]
 pub mod fault;
 pub mod frames;

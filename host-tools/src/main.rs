@@ -73,6 +73,10 @@ struct ValidateArgs {
     /// Keep every case's recording, model and signature in this folder (to rerun `diagnose`).
     #[arg(long)]
     keep: Option<PathBuf>,
+    /// Score a campaign written by another program instead (tools/foreign-tunnel/campaign.py):
+    /// its clean recording is fitted, every case diagnosed, then its sealed truths read.
+    #[arg(long, conflicts_with_all = ["cases", "seed", "duration_s", "classes", "keep"])]
+    campaign: Option<PathBuf>,
 }
 
 #[derive(Debug, clap::Args)]
@@ -342,8 +346,27 @@ fn diagnose(args: DiagnoseArgs) -> anyhow::Result<()> {
 
 /// `validate-diagnosis`: the blind campaign -> report folder with validation.json.
 fn validate_diagnosis(args: ValidateArgs) -> anyhow::Result<()> {
-    use host_tools::validate::{CampaignConfig, run_campaign, score};
+    use host_tools::validate::{CampaignConfig, external, run_campaign};
     let started = Instant::now();
+    if let Some(dir) = &args.campaign {
+        let count = std::fs::read_to_string(dir.join("campaign.json"))
+            .ok()
+            .and_then(|text| serde_json::from_str::<serde_json::Value>(&text).ok())
+            .and_then(|index| index["cases"].as_array().map(Vec::len))
+            .unwrap_or(0);
+        let progress = progress_bar(count as u64, "diagnosing the campaign's cases");
+        let outcome = external::run(dir, &|| progress.inc(1))?;
+        progress.finish_and_clear();
+        let described = format!(
+            "{} cases of the campaign {} (master seed {}), written by another program; the model fitted on its clean recording in {:.0} s; took {:.0} s.",
+            outcome.records.len(),
+            dir.display(),
+            outcome.seed,
+            outcome.fit_s,
+            started.elapsed().as_secs_f64()
+        );
+        return write_validation(&args.report, &outcome.records, &described, &format!("campaign {}", dir.display()));
+    }
     let config = CampaignConfig {
         cases: args.cases,
         seed: args.seed,
@@ -355,7 +378,6 @@ fn validate_diagnosis(args: ValidateArgs) -> anyhow::Result<()> {
     let progress = progress_bar(args.cases as u64, "diagnosing blind cases");
     let records = run_campaign(&config, &|| progress.inc(1));
     progress.finish_and_clear();
-    let summary = score::summarise(&records);
     let described = format!(
         "{} cases, master seed {}, runs of {} s at one angle of attack each (roll, actuation, roll+actuation); took {:.0} s.",
         records.len(),
@@ -363,10 +385,22 @@ fn validate_diagnosis(args: ValidateArgs) -> anyhow::Result<()> {
         args.duration_s,
         started.elapsed().as_secs_f64()
     );
-    let report = score::report(&records, &summary, &described);
-    let json = serde_json::json!({ "config": format!("{config:?}"), "summary": summary, "cases": records });
-    host_tools::report::write_report(&args.report, &report, "validation.json", &json)
-        .with_context(|| format!("writing the report {}", args.report.display()))?;
+    write_validation(&args.report, &records, &described, &format!("{config:?}"))
+}
+
+/// Scores `records`, writes the campaign's report folder and prints the acceptance table.
+fn write_validation(
+    folder: &std::path::Path,
+    records: &[host_tools::validate::CaseRecord],
+    described: &str,
+    config: &str,
+) -> anyhow::Result<()> {
+    use host_tools::validate::score;
+    let summary = score::summarise(records);
+    let report = score::report(records, &summary, described);
+    let json = serde_json::json!({ "config": config, "summary": summary, "cases": records });
+    host_tools::report::write_report(folder, &report, "validation.json", &json)
+        .with_context(|| format!("writing the report {}", folder.display()))?;
     print!(
         "{}",
         report.sections[0].tables[0]
@@ -378,7 +412,7 @@ fn validate_diagnosis(args: ValidateArgs) -> anyhow::Result<()> {
     for (class, cells) in &summary.accuracy_by_ratio {
         println!("{class:<18} {}", cells.iter().map(|(r, t)| format!("{r:>3}/{t:<3}")).collect::<Vec<_>>().join(" "));
     }
-    println!("{described}\nreport: {}", args.report.join("report.html").display());
+    println!("{described}\nreport: {}", folder.join("report.html").display());
     Ok(())
 }
 

@@ -72,7 +72,9 @@ fn inertial_tare_is_named_with_its_inertia_and_the_gap_shrinks() {
     let ixx_kgm2 = 4e-5;
     let effects = Effects { inertial_tare: Some(InertialTare { ixx_kgm2 }), ..Effects::default() };
     let dataset = record(effects.clone());
-    let ratio = effect_ratio("inertial_tare", &scenario(7), &record(Effects::default()), &dataset).unwrap();
+    let ratio =
+        effect_ratio(firmware_sim::effect::Effect::InertialTare, &scenario(7), &record(Effects::default()), &dataset)
+            .unwrap();
     assert!(ratio > 1.5, "the test's effect must stand above the noise: {ratio}");
     let diagnosis = run(&dataset);
     let json = serde_json::to_value(&diagnosis).unwrap();

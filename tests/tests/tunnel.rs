@@ -3,7 +3,7 @@
 
 use firmware_sim::campaign::Scenario;
 use firmware_sim::dataset::{Channels, Dataset, RunKind};
-use firmware_sim::tunnel::effects::{OUTSIDE_VOCABULARY, VOCABULARY};
+use firmware_sim::effect::Effect;
 use host_tools::analysis::superposition::superposition_table;
 
 /// A short campaign at one alpha with all three kinds, where every effect is visible.
@@ -173,10 +173,10 @@ fn outside_vocabulary_effects_reach_the_aerodynamics() {
 
 #[test]
 fn every_named_effect_is_switchable_by_name() {
-    for name in VOCABULARY.iter().chain(OUTSIDE_VOCABULARY.iter()) {
+    for effect in Effect::ALL {
         let mut scenario = Scenario::default();
-        scenario.apply_effect_arg(name).expect("every effect has a moderate default");
-        assert_eq!(scenario.effects.names_on(), vec![*name]);
+        scenario.apply_effect_arg(effect.name()).expect("every effect has a moderate default");
+        assert_eq!(scenario.effects.on(), vec![effect]);
     }
 }
 
@@ -198,14 +198,14 @@ fn scenario_file_switches_effects_and_overrides_parameters() {
     assert_eq!(scenario.seed, 9);
     assert_eq!(scenario.aero.clp, -0.2);
     assert_eq!(scenario.effects.actuator_delay.map(|delay| delay.delay_s), Some(0.04));
-    assert_eq!(scenario.effects.names_on(), vec!["actuator_delay", "bias_drift"]);
+    assert_eq!(scenario.effects.on(), vec![Effect::ActuatorDelay, Effect::BiasDrift]);
     let error = Scenario::from_toml("[aero]\nclp_typo = 1\n").expect_err("unknown key");
     assert!(error.contains("clp_typo"), "{error}");
 }
 
 #[test]
 fn default_scenario_has_no_effect_and_is_deterministic() {
-    assert!(Scenario::default().effects.names_on().is_empty());
+    assert!(Scenario::default().effects.on().is_empty());
     let mut scenario = short_scenario(10.0);
     scenario.duration_s = 3.0;
     assert_eq!(simulate(&scenario), simulate(&scenario));

@@ -9,23 +9,7 @@
 
 use serde::Deserialize;
 
-/// Names of the effects of the diagnosis vocabulary (`shared/spec/diagnosis.md`).
-pub const VOCABULARY: [&str; 11] = [
-    "actuator_delay",
-    "actuator_lag",
-    "inertial_tare",
-    "gravity_tare",
-    "roll_damping",
-    "vortex_lag",
-    "coupling",
-    "pressure_lag",
-    "pressure_fault",
-    "balance_resonance",
-    "bias_drift",
-];
-
-/// Names of the effects this tunnel can inject that are outside the vocabulary.
-pub const OUTSIDE_VOCABULARY: [&str; 2] = ["q_fluctuation", "cubic_stiffness"];
+use crate::effect::Effect;
 
 /// The switched-on effects of a scenario; `None` is off.
 #[derive(Debug, Clone, PartialEq, Default, Deserialize)]
@@ -60,25 +44,25 @@ pub struct Effects {
 }
 
 impl Effects {
-    /// Names of the effects that are on, in vocabulary order.
+    /// The effects that are on, in vocabulary order.
     #[must_use]
-    pub fn names_on(&self) -> Vec<&'static str> {
+    pub fn on(&self) -> Vec<Effect> {
         let flags = [
-            ("actuator_delay", self.actuator_delay.is_some()),
-            ("actuator_lag", self.actuator_lag.is_some()),
-            ("inertial_tare", self.inertial_tare.is_some()),
-            ("gravity_tare", self.gravity_tare.is_some()),
-            ("roll_damping", self.roll_damping.is_some()),
-            ("vortex_lag", self.vortex_lag.is_some()),
-            ("coupling", self.coupling.is_some()),
-            ("pressure_lag", self.pressure_lag.is_some()),
-            ("pressure_fault", self.pressure_fault.is_some()),
-            ("balance_resonance", self.balance_resonance.is_some()),
-            ("bias_drift", self.bias_drift.is_some()),
-            ("q_fluctuation", self.q_fluctuation.is_some()),
-            ("cubic_stiffness", self.cubic_stiffness.is_some()),
+            (Effect::ActuatorDelay, self.actuator_delay.is_some()),
+            (Effect::ActuatorLag, self.actuator_lag.is_some()),
+            (Effect::InertialTare, self.inertial_tare.is_some()),
+            (Effect::GravityTare, self.gravity_tare.is_some()),
+            (Effect::RollDamping, self.roll_damping.is_some()),
+            (Effect::VortexLag, self.vortex_lag.is_some()),
+            (Effect::Coupling, self.coupling.is_some()),
+            (Effect::PressureLag, self.pressure_lag.is_some()),
+            (Effect::PressureFault, self.pressure_fault.is_some()),
+            (Effect::BalanceResonance, self.balance_resonance.is_some()),
+            (Effect::BiasDrift, self.bias_drift.is_some()),
+            (Effect::QFluctuation, self.q_fluctuation.is_some()),
+            (Effect::CubicStiffness, self.cubic_stiffness.is_some()),
         ];
-        flags.into_iter().filter(|(_, on)| *on).map(|(name, _)| name).collect()
+        flags.into_iter().filter(|(_, on)| *on).map(|(effect, _)| effect).collect()
     }
 }
 

@@ -9,39 +9,10 @@
 
 pub use crate::fit::signals::first_order_lag;
 use estimator_core::CoefficientSet;
-use serde::Serialize;
+pub use firmware_sim::effect::Block;
+use firmware_sim::effect::Effect;
 
 use super::streams::RunStreams;
-
-/// The block of the sim an effect belongs to (shared/spec/diagnosis.md).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Block {
-    /// The disturbance model (eGK, pressure path).
-    Disturbance,
-    /// The plant model of the blowing.
-    Plant,
-    /// The coupling operator.
-    Coupling,
-    /// The pressure sensors.
-    Sensor,
-    /// The balance.
-    Balance,
-}
-
-impl Block {
-    /// The name used in reports and JSON.
-    #[must_use]
-    pub const fn name(self) -> &'static str {
-        match self {
-            Self::Disturbance => "disturbance",
-            Self::Plant => "plant",
-            Self::Coupling => "coupling",
-            Self::Sensor => "sensor",
-            Self::Balance => "balance",
-        }
-    }
-}
 
 /// A candidate effect of the balance stream.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -84,31 +55,39 @@ impl Candidate {
         Self::Recalibration,
     ];
 
+    /// The effect the candidate stands for; `None` for recalibration (G0), which names no new
+    /// effect.
+    #[must_use]
+    pub const fn effect(self) -> Option<Effect> {
+        Some(match self {
+            Self::ActuatorDelay => Effect::ActuatorDelay,
+            Self::ActuatorLag => Effect::ActuatorLag,
+            Self::InertialTare => Effect::InertialTare,
+            Self::GravityTare => Effect::GravityTare,
+            Self::RollDamping => Effect::RollDamping,
+            Self::VortexLag => Effect::VortexLag,
+            Self::Coupling => Effect::Coupling,
+            Self::BalanceResonance => Effect::BalanceResonance,
+            Self::BiasDrift => Effect::BiasDrift,
+            Self::Recalibration => return None,
+        })
+    }
+
     /// The effect's name (the vocabulary of shared/spec/diagnosis.md; `recalibration` for G0).
     #[must_use]
     pub const fn name(self) -> &'static str {
-        match self {
-            Self::ActuatorDelay => "actuator_delay",
-            Self::ActuatorLag => "actuator_lag",
-            Self::InertialTare => "inertial_tare",
-            Self::GravityTare => "gravity_tare",
-            Self::RollDamping => "roll_damping",
-            Self::VortexLag => "vortex_lag",
-            Self::Coupling => "coupling",
-            Self::BalanceResonance => "balance_resonance",
-            Self::BiasDrift => "bias_drift",
-            Self::Recalibration => "recalibration",
+        match self.effect() {
+            Some(effect) => effect.name(),
+            None => "recalibration",
         }
     }
 
-    /// The block the effect belongs to.
+    /// The block the effect belongs to (recalibration: the disturbance model's gains).
     #[must_use]
     pub const fn block(self) -> Block {
-        match self {
-            Self::ActuatorDelay | Self::ActuatorLag => Block::Plant,
-            Self::InertialTare | Self::GravityTare | Self::BalanceResonance | Self::BiasDrift => Block::Balance,
-            Self::RollDamping | Self::VortexLag | Self::Recalibration => Block::Disturbance,
-            Self::Coupling => Block::Coupling,
+        match self.effect() {
+            Some(effect) => effect.block(),
+            None => Block::Disturbance,
         }
     }
 

@@ -526,6 +526,7 @@ fn balance_effect(
         heldout_rms_after: finite(gap.gap_after()),
         shrink: finite(gap.shrink()),
         shrink_total: finite(regression::HeldoutGap { floor_var: 0.0, ..gap }.shrink()),
+        shrink_measured: true,
         delta_bic: finite(profiled.delta_bic),
         effect_to_noise: finite((profiled.explained() / gap.noise_var.max(f64::MIN_POSITIVE)).sqrt()),
         evidence: format!(
@@ -553,13 +554,14 @@ fn sensor_effect(finding: &SensorFinding) -> EffectResult {
     params.insert("channels".into(), serde_json::json!(finding.channels));
     let dead = finding.heldout.n == 0;
     EffectResult {
-        name: finding.name.into(),
+        name: finding.effect.name().into(),
         block: "sensor".into(),
         params,
         heldout_rms_before: finite(finding.heldout.gap_before()),
         heldout_rms_after: finite(finding.heldout.gap_after()),
         shrink: if dead { 1.0 } else { finite(finding.heldout.shrink()) },
         shrink_total: if dead { 1.0 } else { finite(finding.heldout.shrink()) },
+        shrink_measured: !dead,
         delta_bic: finite(finding.delta_bic.min(1e12)),
         effect_to_noise: finite((finding.explained.min(1e12) / finding.noise_var.max(f64::MIN_POSITIVE)).sqrt()),
         evidence: finding.evidence.clone(),

@@ -335,7 +335,7 @@ pub fn finding(runs: &[RunStreams], reference_tau_s: f64) -> Option<SensorFindin
     );
     let names: Vec<String> = alignment.taps().iter().map(|&tap| channel_name(tap)).collect();
     Some(SensorFinding {
-        name: "pressure_lag",
+        effect: firmware_sim::effect::Effect::PressureLag,
         params: vec![
             ("tau_s".to_owned(), ParamValue::Number(lag_s)),
             ("channels".to_owned(), ParamValue::Text("all".into())),

@@ -135,6 +135,10 @@ pub struct EffectResult {
     /// The same with the gaps beyond the noise only (the sim's own floor left in both): the
     /// share of the whole held-out gap the effect removes.
     pub shrink_total: f64,
+    /// False where the shrink is not measured but holds by definition: a dead channel has no
+    /// reading left, so its 1 says nothing of the diagnosis (and stays out of a campaign's
+    /// median).
+    pub shrink_measured: bool,
     /// Complexity-penalised evidence on the training part.
     pub delta_bic: f64,
     /// RMS of the fitted effect over the noise RMS, on the runs it touches.
@@ -213,7 +217,7 @@ impl CandidateSummary {
             );
         }
         Self {
-            name: finding.name.into(),
+            name: finding.effect.name().into(),
             block: "sensor".into(),
             hyper,
             explained_to_noise: finite(finding.explained.min(1e12) / finding.noise_var.max(f64::MIN_POSITIVE)),

@@ -3,6 +3,8 @@
 //! on some) and a faulty channel (stuck, dead, biased or spiking: one channel departs from the
 //! other eleven). Gaps here are in Cp units.
 
+use firmware_sim::effect::Effect;
+
 use super::regression::{self, Segment};
 use super::streams::RunStreams;
 
@@ -16,8 +18,8 @@ const SPIKE_SIGMA: f64 = 6.0;
 /// A sensor finding with its strength.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SensorFinding {
-    /// `pressure_lag` or `pressure_fault`.
-    pub name: &'static str,
+    /// [`Effect::PressureLag`] or [`Effect::PressureFault`].
+    pub effect: Effect,
     /// Physical parameters.
     pub params: Vec<(String, ParamValue)>,
     /// The channel, for a single-channel finding (`cp07`).
@@ -72,7 +74,7 @@ impl SensorFinding {
     /// several channels.
     #[must_use]
     pub fn floor_key(&self) -> String {
-        format!("{}:{}", self.name, self.channel.as_deref().unwrap_or("aligned"))
+        format!("{}:{}", self.effect, self.channel.as_deref().unwrap_or("aligned"))
     }
 }
 
@@ -170,7 +172,7 @@ fn lag_finding(
     let heldout = regression::heldout_gap(segments, columns, &fit.beta, &fit.touched);
     let channels = tap.map_or_else(|| "all".to_owned(), channel_name);
     SensorFinding {
-        name: "pressure_lag",
+        effect: Effect::PressureLag,
         params: vec![
             ("tau_s".into(), ParamValue::Number(tau_s)),
             ("gain".into(), ParamValue::Number(fit.beta[0])),
@@ -223,7 +225,7 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
     if missing_fraction > 0.02 && missing_fraction > 10.0 * others_fraction {
         let onset = first_long_gap_s(runs, tap);
         return Some(SensorFinding {
-            name: "pressure_fault",
+            effect: Effect::PressureFault,
             params: vec![
                 ("mode".into(), ParamValue::Text("dead".into())),
                 ("start_s".into(), ParamValue::Number(onset)),
@@ -262,7 +264,7 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
         let fit = regression::fit_through_origin(&segments, &columns)?;
         let heldout = regression::heldout_gap(&segments, &columns, &[1.0], &fit.touched);
         return Some(SensorFinding {
-            name: "pressure_fault",
+            effect: Effect::PressureFault,
             params: vec![
                 ("mode".into(), ParamValue::Text("stuck".into())),
                 ("start_s".into(), ParamValue::Number(stuck_start_s)),
@@ -313,7 +315,7 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
         let expected = gaussian_tail(SPIKE_SIGMA) * runs.iter().map(RunStreams::len).sum::<usize>() as f64;
         let delta = if (count as f64) > 3.0 * expected + 3.0 { delta_bic(&fit, tau, 1) } else { 0.0 };
         return Some(SensorFinding {
-            name: "pressure_fault",
+            effect: Effect::PressureFault,
             params: vec![
                 ("mode".into(), ParamValue::Text("spike".into())),
                 ("spike_rate_hz".into(), ParamValue::Number(count as f64 / duration_s.max(f64::MIN_POSITIVE))),
@@ -332,7 +334,7 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
     let fit = bias?;
     let heldout = regression::heldout_gap(&segments, &columns, &fit.beta, &fit.touched);
     Some(SensorFinding {
-        name: "pressure_fault",
+        effect: Effect::PressureFault,
         params: vec![
             ("mode".into(), ParamValue::Text("bias".into())),
             ("value".into(), ParamValue::Number(fit.beta[0])),

@@ -9,6 +9,7 @@
 //! The injection is the tunnel's own code (firmware_sim::tunnel::effects: RK4-integrated
 //! continuous-time states, fractional delays), written apart from the diagnosis's candidates.
 
+pub mod external;
 pub mod score;
 
 use std::collections::HashMap;
@@ -18,6 +19,7 @@ use std::time::Instant;
 use estimator_core::CoefficientSet;
 use firmware_sim::campaign::{Scenario, mix_seed};
 use firmware_sim::dataset::Dataset;
+use firmware_sim::effect::Effect;
 use firmware_sim::tunnel::effects::{
     ActuatorDelay, ActuatorLag, BalanceResonance, BiasDrift, Coupling, CubicStiffness, Effects, FaultMode, GravityTare,
     InertialTare, PressureFault, PressureLag, QFluctuation, RollDamping, VortexLag,
@@ -30,20 +32,29 @@ use serde::Serialize;
 use crate::diagnose::{DiagnoseConfig, Signature, diagnose};
 use crate::fit::pipeline::{FitConfig, fit_dataset};
 
-/// Classes of case, in the order cases cycle through them: no effect, every effect of the
-/// vocabulary, every effect outside it (the tunnel's lists).
+/// Classes of case, in the order cases cycle through them: no effect (`None`), every effect of
+/// the vocabulary, every effect outside it.
 #[must_use]
-pub fn classes() -> Vec<&'static str> {
-    std::iter::once("none")
-        .chain(firmware_sim::tunnel::effects::VOCABULARY)
-        .chain(firmware_sim::tunnel::effects::OUTSIDE_VOCABULARY)
-        .collect()
+pub fn classes() -> Vec<Option<Effect>> {
+    std::iter::once(None).chain(Effect::ALL.map(Some)).collect()
+}
+
+/// The name of a class as written in the records: the effect's, or `none`.
+#[must_use]
+pub fn class_name(class: Option<Effect>) -> &'static str {
+    class.map_or("none", Effect::name)
+}
+
+/// The class a record's name stands for (`None` for `none` or a name that is no effect).
+#[must_use]
+pub fn class_of(name: &str) -> Option<Effect> {
+    name.parse().ok()
 }
 
 /// True for the classes outside the diagnosis vocabulary.
 #[must_use]
 pub fn outside_vocabulary(class: &str) -> bool {
-    firmware_sim::tunnel::effects::OUTSIDE_VOCABULARY.contains(&class)
+    class_of(class).is_some_and(|effect| !effect.in_vocabulary())
 }
 
 /// Settings of a campaign.
@@ -98,15 +109,16 @@ pub struct CaseRecord {
     pub truth: String,
     /// SHA-256 of the truth, recorded before the diagnosis ran.
     pub truth_sha256: String,
-    /// The injected channel, for single-channel sensor effects.
-    pub truth_channel: Option<String>,
+    /// The injected channels, for sensor effects (one for a fault; one, some or all for a lag).
+    pub truth_channels: Vec<String>,
     /// The diagnosis's verdict.
     pub verdict: String,
     /// Named effects, most responsible first.
     pub named: Vec<String>,
-    /// The channel the diagnosis named.
-    pub named_channel: Option<String>,
-    /// Held-out shrink of the first named effect (beyond the sim's own floor).
+    /// The channels the diagnosis named for a sensor effect.
+    pub named_channels: Vec<String>,
+    /// Held-out shrink of the first named effect (beyond the sim's own floor); `None` where it
+    /// is not measured (a dead channel has no reading left to compare: its 1 is by definition).
     pub shrink: Option<f64>,
     /// The same against the whole held-out gap beyond noise.
     pub shrink_total: Option<f64>,
@@ -119,10 +131,10 @@ pub struct CaseRecord {
 /// Runs the campaign; `progress` is called once per finished case.
 pub fn run_campaign(config: &CampaignConfig, progress: &(dyn Fn() + Sync)) -> Vec<CaseRecord> {
     let models: Models = Mutex::new(HashMap::new());
-    let classes: Vec<&str> = if config.classes.is_empty() {
+    let classes: Vec<Option<Effect>> = if config.classes.is_empty() {
         classes()
     } else {
-        classes().into_iter().filter(|c| config.classes.iter().any(|k| k == c)).collect()
+        classes().into_iter().filter(|c| config.classes.iter().any(|k| k == class_name(*c))).collect()
     };
     if classes.is_empty() {
         return Vec::new();
@@ -165,16 +177,16 @@ fn clean_model(config: &CampaignConfig, alpha_deg: f64, models: &Models) -> Opti
 /// Clean models and their signatures, per angle of attack.
 type Models = Mutex<HashMap<u64, (CoefficientSet, Signature)>>;
 
-fn run_case(config: &CampaignConfig, id: usize, class: &str, models: &Models) -> Option<CaseRecord> {
+fn run_case(config: &CampaignConfig, id: usize, class: Option<Effect>, models: &Models) -> Option<CaseRecord> {
     let mut rng = ChaCha8Rng::seed_from_u64(mix_seed(config.seed, 7_000 + id as u64));
     let alpha_deg = config.alphas_deg[rng.random_range(0..config.alphas_deg.len())];
     let [low, high] = config.ratio_range;
-    let target_ratio = if class == "none" { 0.0 } else { (low.ln() + rng.random::<f64>() * (high / low).ln()).exp() };
+    let target_ratio = if class.is_none() { 0.0 } else { (low.ln() + rng.random::<f64>() * (high / low).ln()).exp() };
     let case_seed = mix_seed(config.seed, 9_000 + id as u64);
     let base = base_scenario(config, alpha_deg, case_seed);
     let (set, signature) = clean_model(config, alpha_deg, models)?;
     let clean = base.simulate(&|| {}).ok()?;
-    let (effects, truth_channel) = draw_effect(class, &base, &mut rng);
+    let (effects, truth_channels) = draw_effect(class, &base, &mut rng);
     let (effects, ratio) = calibrate(class, &base, &clean, effects, target_ratio)?;
     let mut scenario = base;
     scenario.effects = effects.clone();
@@ -198,28 +210,31 @@ fn run_case(config: &CampaignConfig, id: usize, class: &str, models: &Models) ->
     let diagnose_config = DiagnoseConfig { signature: Some(signature), ..DiagnoseConfig::default() };
     let outcome = diagnose(&real, Some((&set, "fitted on a clean recording".into())), &diagnose_config, &|_| {});
     let diagnosis_s = clock.elapsed().as_secs_f64();
-    let (verdict, named, named_channel, shrink, shrink_total) = match outcome {
-        Ok((diagnosis, _)) => (
-            diagnosis.verdict.as_str().to_owned(),
-            diagnosis.effects.iter().map(|e| e.name.clone()).collect::<Vec<_>>(),
-            diagnosis.where_.channel.clone(),
-            diagnosis.effects.first().map(|e| e.shrink),
-            diagnosis.effects.first().map(|e| e.shrink_total),
-        ),
-        Err(error) => (format!("error: {error}"), Vec::new(), None, None, None),
+    let (verdict, named, named_channels, shrink, shrink_total) = match outcome {
+        Ok((diagnosis, _)) => {
+            let first = diagnosis.effects.first().filter(|e| e.shrink_measured);
+            (
+                diagnosis.verdict.as_str().to_owned(),
+                diagnosis.effects.iter().map(|e| e.name.clone()).collect::<Vec<_>>(),
+                diagnosis.where_.channels.clone(),
+                first.map(|e| e.shrink),
+                first.map(|e| e.shrink_total),
+            )
+        }
+        Err(error) => (format!("error: {error}"), Vec::new(), Vec::new(), None, None),
     };
     let mut record = CaseRecord {
         id,
-        class: class.to_owned(),
+        class: class_name(class).to_owned(),
         alpha_deg,
         target_ratio,
         ratio,
         truth,
         truth_sha256,
-        truth_channel,
+        truth_channels,
         verdict,
         named,
-        named_channel,
+        named_channels,
         shrink,
         shrink_total,
         correct: false,
@@ -239,36 +254,38 @@ fn blind(dataset: &mut Dataset) {
 }
 
 /// A random setting of the class's effect at a reference magnitude (later scaled), and the
-/// channel for single-channel sensor effects.
-fn draw_effect(class: &str, base: &Scenario, rng: &mut ChaCha8Rng) -> (Effects, Option<String>) {
+/// channels of a sensor effect.
+fn draw_effect(class: Option<Effect>, base: &Scenario, rng: &mut ChaCha8Rng) -> (Effects, Vec<String>) {
     let mut effects = Effects::default();
-    let mut channel = None;
+    let mut channel = Vec::new();
     let sign = |rng: &mut ChaCha8Rng| if rng.random::<bool>() { 1.0 } else { -1.0 };
     let log_uniform =
         |rng: &mut ChaCha8Rng, low: f64, high: f64| (low.ln() + rng.random::<f64>() * (high / low).ln()).exp();
-    match class {
-        "actuator_delay" => effects.actuator_delay = Some(ActuatorDelay { delay_s: 0.02 }),
-        "actuator_lag" => effects.actuator_lag = Some(ActuatorLag { tau_s: 0.03 }),
-        "inertial_tare" => effects.inertial_tare = Some(InertialTare { ixx_kgm2: 1e-5 * sign(rng) }),
-        "gravity_tare" => {
+    let Some(effect) = class else { return (effects, channel) };
+    match effect {
+        Effect::ActuatorDelay => effects.actuator_delay = Some(ActuatorDelay { delay_s: 0.02 }),
+        Effect::ActuatorLag => effects.actuator_lag = Some(ActuatorLag { tau_s: 0.03 }),
+        Effect::InertialTare => effects.inertial_tare = Some(InertialTare { ixx_kgm2: 1e-5 * sign(rng) }),
+        Effect::GravityTare => {
             effects.gravity_tare =
                 Some(GravityTare { mass_kg: 0.13, cg_offset_m: 5e-4, phase_deg: rng.random_range(-40.0..40.0) });
         }
-        "roll_damping" => effects.roll_damping = Some(RollDamping { clp: -0.03 * log_uniform(rng, 0.5, 2.0) }),
-        "vortex_lag" => {
+        Effect::RollDamping => effects.roll_damping = Some(RollDamping { clp: -0.03 * log_uniform(rng, 0.5, 2.0) }),
+        Effect::VortexLag => {
             effects.vortex_lag = Some(VortexLag { tau_s: log_uniform(rng, 0.2, 2.0), weight: 0.3 });
         }
-        "coupling" => effects.coupling = Some(Coupling { gain: 0.3 * sign(rng) }),
-        "pressure_lag" => {
+        Effect::Coupling => effects.coupling = Some(Coupling { gain: 0.3 * sign(rng) }),
+        Effect::PressureLag => {
             let channels = if rng.random::<f64>() < 0.3 { vec![rng.random_range(1..=12usize)] } else { Vec::new() };
-            if let [one] = channels.as_slice() {
-                channel = Some(format!("cp{one:02}"));
-            }
+            channel = match channels.as_slice() {
+                [one] => vec![format!("cp{one:02}")],
+                _ => (1..=12).map(|tap| format!("cp{tap:02}")).collect(),
+            };
             effects.pressure_lag = Some(PressureLag { tau_s: 0.02, channels });
         }
-        "pressure_fault" => {
+        Effect::PressureFault => {
             let ch = rng.random_range(1..=12usize);
-            channel = Some(format!("cp{ch:02}"));
+            channel = vec![format!("cp{ch:02}")];
             let mode = [FaultMode::Bias, FaultMode::Spike, FaultMode::Stuck, FaultMode::Dead][rng.random_range(0..4)];
             effects.pressure_fault = Some(PressureFault {
                 channel: ch,
@@ -278,22 +295,21 @@ fn draw_effect(class: &str, base: &Scenario, rng: &mut ChaCha8Rng) -> (Effects, 
                 start_s: rng.random_range(0.0..0.5 * base.duration_s),
             });
         }
-        "balance_resonance" => {
+        Effect::BalanceResonance => {
             effects.balance_resonance = Some(BalanceResonance {
                 freq_hz: log_uniform(rng, 8.0, 60.0),
                 zeta: log_uniform(rng, 0.01, 0.1),
                 gain: 0.01,
             });
         }
-        "bias_drift" => {
+        Effect::BiasDrift => {
             let walk = if rng.random::<bool>() { 2e-5 } else { 0.0 };
             effects.bias_drift = Some(BiasDrift { rate_per_s: 2e-5 * sign(rng), walk_per_sqrt_s: walk });
         }
-        "q_fluctuation" => {
+        Effect::QFluctuation => {
             effects.q_fluctuation = Some(QFluctuation { rel_std: 0.03, tau_s: log_uniform(rng, 0.2, 2.0) })
         }
-        "cubic_stiffness" => effects.cubic_stiffness = Some(CubicStiffness { gain: 0.002 * sign(rng) }),
-        _ => {}
+        Effect::CubicStiffness => effects.cubic_stiffness = Some(CubicStiffness { gain: 0.002 * sign(rng) }),
     }
     (effects, channel)
 }
@@ -302,8 +318,8 @@ fn draw_effect(class: &str, base: &Scenario, rng: &mut ChaCha8Rng) -> (Effects, 
 /// for sensor effects), over the runs and channels it touches, divided by that stream's noise
 /// RMS; `None` when the effect removes the readings (a dead channel).
 #[must_use]
-pub fn effect_ratio(class: &str, base: &Scenario, clean: &Dataset, real: &Dataset) -> Option<f64> {
-    let sensor = matches!(class, "pressure_lag" | "pressure_fault");
+pub fn effect_ratio(effect: Effect, base: &Scenario, clean: &Dataset, real: &Dataset) -> Option<f64> {
+    let sensor = effect.is_sensor();
     let noise = if sensor { base.sensors.cp_noise_std } else { base.sensors.balance_noise_std_cl };
     let mut streams: Vec<(&[f64], &[f64])> = Vec::new();
     for (a, b) in clean.runs.iter().zip(&real.runs) {
@@ -336,21 +352,19 @@ pub fn effect_ratio(class: &str, base: &Scenario, clean: &Dataset, real: &Datase
 /// Scales the effect so that its ratio meets `target` (linearly for amplitude parameters, by
 /// bisection in log space for delays and time constants), and returns the ratio reached.
 fn calibrate(
-    class: &str,
+    class: Option<Effect>,
     base: &Scenario,
     clean: &Dataset,
     mut effects: Effects,
     target: f64,
 ) -> Option<(Effects, Option<f64>)> {
+    let Some(effect) = class else { return Some((effects, Some(0.0))) };
     let measure = |effects: &Effects| -> Option<Option<f64>> {
         let mut scenario = base.clone();
         scenario.effects = effects.clone();
         let real = scenario.simulate(&|| {}).ok()?;
-        Some(effect_ratio(class, base, clean, &real))
+        Some(effect_ratio(effect, base, clean, &real))
     };
-    if class == "none" {
-        return Some((effects, Some(0.0)));
-    }
     if let Some(fault) = &effects.pressure_fault
         && matches!(fault.mode, FaultMode::Stuck | FaultMode::Dead)
     {
@@ -372,12 +386,14 @@ fn calibrate(
         }
         Some(last)
     };
-    let ratio = match class {
-        "actuator_delay" => {
+    let ratio = match effect {
+        Effect::ActuatorDelay => {
             bisect(&mut effects, &|e, v| e.actuator_delay = Some(ActuatorDelay { delay_s: v }), 2e-4, 0.5)?
         }
-        "actuator_lag" => bisect(&mut effects, &|e, v| e.actuator_lag = Some(ActuatorLag { tau_s: v }), 5e-4, 1.0)?,
-        "pressure_lag" => {
+        Effect::ActuatorLag => {
+            bisect(&mut effects, &|e, v| e.actuator_lag = Some(ActuatorLag { tau_s: v }), 5e-4, 1.0)?
+        }
+        Effect::PressureLag => {
             let channels = effects.pressure_lag.as_ref().map(|p| p.channels.clone()).unwrap_or_default();
             bisect(
                 &mut effects,
