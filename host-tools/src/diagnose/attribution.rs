@@ -11,6 +11,9 @@ use super::regression::{self, Fit, HeldoutGap, Segment};
 use super::sensor::delta_bic;
 use super::streams::RunStreams;
 
+/// One grid point of a candidate: its named parameters and discrete choices.
+pub type Hyper = Vec<(&'static str, f64)>;
+
 /// A candidate profiled over its grid.
 #[derive(Debug, Clone)]
 pub struct Profiled {
@@ -24,6 +27,8 @@ pub struct Profiled {
     pub delta_bic: f64,
     /// Profile: the criterion's residual sum of squares at each grid point (for the report).
     pub profile: Vec<(f64, f64)>,
+    /// Gap on the selection part before and after the effect (with the training part's fit).
+    pub selection: HeldoutGap,
     /// Held-out gap before and after the effect.
     pub heldout: HeldoutGap,
 }
@@ -33,6 +38,14 @@ impl Profiled {
     #[must_use]
     pub fn explained(&self) -> f64 {
         self.fit.explained_per_sample()
+    }
+
+    /// Mean square the effect, fitted on the training part, removes on the selection part: the
+    /// evidence the decisions rest on (out of sample, so the sim's recording-to-recording
+    /// scatter that no effect predicts does not count).
+    #[must_use]
+    pub fn selected(&self) -> f64 {
+        self.selection.removed()
     }
 }
 
@@ -58,21 +71,26 @@ pub fn profile(
 ) -> Option<Profiled> {
     let segments = segments(runs, residuals);
     let sample_hz = runs.first()?.sample_hz;
-    let grid = candidate.grid(sample_hz, context.slow_tau_min_s, context.resonance_min_hz);
-    let fits: Vec<(Vec<(&'static str, f64)>, Fit)> = grid
+    let grid = candidate.grid(sample_hz, context);
+    // Each form of the family with its evidence: the best form is the one with the most evidence
+    // (its columns and profiled parameters penalised), so a richer form wins only by its fit.
+    let fits: Vec<(Hyper, Fit, f64)> = grid
         .par_iter()
         .filter_map(|hyper| {
             let columns = all_columns(candidate, hyper, runs, context);
-            regression::fit_through_origin(&segments, &columns).map(|fit| (hyper.clone(), fit))
+            regression::fit_through_origin(&segments, &columns).map(|fit| {
+                let k = fit.beta.len() + Candidate::n_profiled(hyper);
+                let evidence = delta_bic(&fit, autocorrelation_time, k);
+                (hyper.clone(), fit, evidence)
+            })
         })
         .collect();
-    let profile = fits.iter().map(|(hyper, fit)| (hyper.first().map_or(0.0, |(_, v)| *v), fit.ssr)).collect();
-    let (hyper, fit) = fits.into_iter().min_by(|a, b| a.1.ssr.total_cmp(&b.1.ssr))?;
+    let profile = fits.iter().map(|(hyper, fit, _)| (hyper.first().map_or(0.0, |(_, v)| *v), fit.ssr)).collect();
+    let (hyper, fit, delta_bic) = fits.into_iter().max_by(|a, b| a.2.total_cmp(&b.2))?;
     let columns = all_columns(candidate, &hyper, runs, context);
+    let selection = regression::selection_gap(&segments, &columns, &fit.beta, &fit.touched);
     let heldout = regression::heldout_gap(&segments, &columns, &fit.beta, &fit.touched);
-    let k = candidate.n_columns(runs.len()) + hyper.len();
-    let delta_bic = delta_bic(&fit, autocorrelation_time, k);
-    Some(Profiled { candidate, hyper, fit, delta_bic, profile, heldout })
+    Some(Profiled { candidate, hyper, fit, delta_bic, profile, selection, heldout })
 }
 
 /// The segments of the residual stream.
@@ -80,7 +98,12 @@ pub fn profile(
 pub fn segments<'a>(runs: &[RunStreams], residuals: &'a [Vec<f64>]) -> Vec<Segment<'a>> {
     runs.iter()
         .zip(residuals)
-        .map(|(run, residual)| Segment { residual, training: run.training.clone(), heldout: run.heldout.clone() })
+        .map(|(run, residual)| Segment {
+            residual,
+            training: run.training.clone(),
+            select: run.select,
+            heldout: run.heldout.clone(),
+        })
         .collect()
 }
 
@@ -109,11 +132,21 @@ pub fn subtract(
 /// Groups of the structure probe: shapes outside every candidate's span that a real gap often
 /// has. Used only to say that something remains, never to name it; each group is compared
 /// with its own floor in the sim's signature.
-pub const PROBE_GROUPS: [&str; 2] = ["static_nonlinearity", "slow_gain"];
+pub const PROBE_GROUPS: [&str; 3] = ["static_nonlinearity", "slow_gain", "input_dynamics"];
+
+/// The probe groups also asked of the remainder after a named effect: shapes no candidate
+/// spans. `input_dynamics` spans much of what the candidates do and asks only whether the
+/// residual holds input-driven structure when nothing is named.
+pub const REMAINDER_PROBE_GROUPS: [&str; 2] = ["static_nonlinearity", "slow_gain"];
+
+/// Time constants of the `input_dynamics` probe, s: fast, middle and slow, a decade apart.
+const PROBE_TAUS_S: [f64; 3] = [0.02, 0.2, 2.0];
 
 /// Columns of one probe group (see [`PROBE_GROUPS`]): odd powers of the roll angle, rate
 /// nonlinearity and the eGK moment's growth with the angle (`static_nonlinearity`); the sim's
-/// moment times Legendre polynomials of time per run, a slowly varying gain (`slow_gain`).
+/// moment times Legendre polynomials of time per run, a slowly varying gain (`slow_gain`); the
+/// roll angle, reduced roll rate, total blowing and the sim's moment through first-order lags of
+/// three time scales (`input_dynamics`: any linear dynamics the sim lacks).
 #[must_use]
 pub fn probe_columns(runs: &[RunStreams], group: &str) -> Vec<Vec<Vec<f64>>> {
     let n_runs = runs.len();
@@ -121,6 +154,18 @@ pub fn probe_columns(runs: &[RunStreams], group: &str) -> Vec<Vec<Vec<f64>>> {
         .enumerate()
         .map(|(run_idx, run)| {
             let n = run.len();
+            if group == "input_dynamics" {
+                let dt_s = 1.0 / run.sample_hz;
+                let blowing: Vec<f64> = (0..n).map(|idx| run.cmu[0][idx] + run.cmu[1][idx]).collect();
+                let sim = run.cl_sim();
+                let mut cols = Vec::new();
+                for signal in [&run.phi_rad, &run.phi_dot_rad_s, &blowing, &sim] {
+                    for tau_s in PROBE_TAUS_S {
+                        cols.push(candidates::first_order_lag(signal, tau_s, dt_s));
+                    }
+                }
+                return cols;
+            }
             if group == "static_nonlinearity" {
                 return vec![
                     run.phi_rad.iter().map(|phi| phi.powi(3)).collect::<Vec<f64>>(),

@@ -117,45 +117,75 @@ impl Candidate {
         }
     }
 
-    /// Names of the nonlinear parameters profiled on a grid, with the grid; the vortex lag's
-    /// time constants start at `slow_tau_min_s` ([`Context::slow_tau_min_s`]), the balance
-    /// mode's frequencies at `resonance_min_hz` ([`Context::resonance_min_hz`]).
+    /// The candidate's family: every grid point is one form with its nonlinear parameters
+    /// (delays, time constants, frequencies) and its discrete choices (`per_alpha`: one gain per
+    /// angle of attack instead of one for all, for the aerodynamic effects when the recording
+    /// has several; `degree`, `knot_spacing_s` of a drift). The vortex lag's time constants
+    /// start at `slow_tau_min_s` ([`Context::slow_tau_min_s`]), the balance mode's frequencies
+    /// at `resonance_min_hz` ([`Context::resonance_min_hz`]). Within a family the form is
+    /// chosen by its complexity-penalised evidence, not by its fit alone.
     #[must_use]
-    pub fn grid(self, sample_hz: f64, slow_tau_min_s: f64, resonance_min_hz: f64) -> Vec<Vec<(&'static str, f64)>> {
+    pub fn grid(self, sample_hz: f64, context: &Context<'_>) -> Vec<Vec<(&'static str, f64)>> {
         let dt_s = 1.0 / sample_hz;
+        let scheduled = |points: Vec<Vec<(&'static str, f64)>>| -> Vec<Vec<(&'static str, f64)>> {
+            if context.alphas_deg.len() < 2 {
+                return points;
+            }
+            points
+                .into_iter()
+                .flat_map(|point| {
+                    let mut per_alpha = point.clone();
+                    per_alpha.push(("per_alpha", 1.0));
+                    [point, per_alpha]
+                })
+                .collect()
+        };
         match self {
             Self::ActuatorDelay => log_grid(0.5 * dt_s, 0.25, 40).into_iter().map(|d| vec![("delay_s", d)]).collect(),
             Self::ActuatorLag => log_grid(dt_s, 0.5, 36).into_iter().map(|tau| vec![("tau_s", tau)]).collect(),
-            Self::VortexLag => log_grid(0.03, 5.0, 30)
-                .into_iter()
-                .filter(|tau| *tau >= slow_tau_min_s)
-                .map(|tau| vec![("tau_s", tau)])
-                .collect(),
+            Self::VortexLag => scheduled(
+                log_grid(0.03, 5.0, 30)
+                    .into_iter()
+                    .filter(|tau| *tau >= context.slow_tau_min_s)
+                    .map(|tau| vec![("tau_s", tau)])
+                    .collect(),
+            ),
+            Self::RollDamping | Self::Coupling | Self::Recalibration => scheduled(vec![Vec::new()]),
             Self::BalanceResonance => {
                 let top_hz = (0.35 * sample_hz).min(250.0);
                 let mut grid = Vec::new();
-                for freq in log_grid(resonance_min_hz.min(0.5 * top_hz), top_hz, 60) {
-                    for zeta in [0.01, 0.03, 0.1, 0.3] {
+                for freq in log_grid(context.resonance_min_hz.min(0.5 * top_hz), top_hz, 60) {
+                    for zeta in RESONANCE_DAMPING {
                         grid.push(vec![("freq_hz", freq), ("zeta", zeta)]);
                     }
                 }
+                grid
+            }
+            Self::BiasDrift => {
+                let mut grid: Vec<Vec<(&'static str, f64)>> =
+                    [1.0, 2.0, 3.0].into_iter().map(|degree| vec![("degree", degree)]).collect();
+                grid.extend(DRIFT_KNOT_SPACING_S.into_iter().map(|spacing| vec![("knot_spacing_s", spacing)]));
                 grid
             }
             _ => vec![Vec::new()],
         }
     }
 
-    /// Number of regression columns per grid point (for the complexity penalty).
+    /// How many of a grid point's entries are continuous parameters profiled on the grid (they
+    /// count in the complexity penalty; discrete choices count through their columns).
     #[must_use]
-    pub fn n_columns(self, n_runs: usize) -> usize {
-        match self {
-            Self::ActuatorDelay | Self::ActuatorLag | Self::InertialTare | Self::RollDamping => 1,
-            Self::GravityTare | Self::BalanceResonance | Self::Recalibration | Self::VortexLag => 2,
-            Self::Coupling => 6,
-            Self::BiasDrift => 2 * n_runs,
-        }
+    pub fn n_profiled(hyper: &[(&'static str, f64)]) -> usize {
+        hyper.iter().filter(|(name, _)| !matches!(*name, "per_alpha" | "degree" | "knot_spacing_s")).count()
     }
 }
+
+/// Damping ratios of the balance-resonance candidate: from 0.005 (a bolted steel sting) to 0.3,
+/// wider than any rig's mode is likely to sit (gap-diagnosis.md section 2.3).
+pub const RESONANCE_DAMPING: [f64; 7] = [0.005, 0.01, 0.02, 0.04, 0.08, 0.15, 0.3];
+
+/// Knot spacings of the drift's piecewise-linear form, s: a zero that wanders (a random walk)
+/// rather than a smooth trend.
+pub const DRIFT_KNOT_SPACING_S: [f64; 2] = [4.0, 2.0];
 
 /// `n` points spaced logarithmically from `low` to `high`.
 #[must_use]
@@ -168,7 +198,7 @@ pub fn log_grid(low: f64, high: f64, n: usize) -> Vec<f64> {
 }
 
 /// What the regressors need besides the run itself.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct Context<'a> {
     /// The sim's coefficient set (the plant is re-run on modified Cmu).
     pub set: &'a CoefficientSet,
@@ -185,6 +215,10 @@ pub struct Context<'a> {
     pub slow_tau_min_s: f64,
     /// Lowest natural frequency of the balance-resonance candidate, Hz ([`resonance_min_hz`]).
     pub resonance_min_hz: f64,
+    /// The recording's angles of attack, deg, ascending (the groups of a per-alpha gain).
+    pub alphas_deg: Vec<f64>,
+    /// Duration of the longest run, s (the drift's knots).
+    pub longest_run_s: f64,
 }
 
 /// Lowest frequency the balance-resonance candidate may take, Hz: an octave above the motion's
@@ -237,6 +271,30 @@ pub fn columns(
     run_idx: usize,
     context: &Context<'_>,
 ) -> Vec<Vec<f64>> {
+    let base = base_columns(candidate, hyper, run, run_idx, context);
+    let per_alpha = hyper.iter().any(|(name, value)| *name == "per_alpha" && *value > 0.5);
+    if !per_alpha {
+        return base;
+    }
+    // One gain per angle of attack: each column repeated per alpha, zero at the other alphas.
+    let n = run.len();
+    let group = context.alphas_deg.iter().position(|a| (a - run.alpha_deg).abs() < 1e-6);
+    let mut out = Vec::with_capacity(base.len() * context.alphas_deg.len());
+    for column in base {
+        for slot in 0..context.alphas_deg.len() {
+            out.push(if Some(slot) == group { column.clone() } else { vec![0.0; n] });
+        }
+    }
+    out
+}
+
+fn base_columns(
+    candidate: Candidate,
+    hyper: &[(&'static str, f64)],
+    run: &RunStreams,
+    run_idx: usize,
+    context: &Context<'_>,
+) -> Vec<Vec<f64>> {
     let n = run.len();
     let dt_s = 1.0 / run.sample_hz;
     let value = |key: &str| hyper.iter().find(|(name, _)| *name == key).map_or(0.0, |(_, v)| *v);
@@ -264,12 +322,18 @@ pub fn columns(
             vec![run.phi_dot_rad_s.iter().map(|rate| rate * context.half_span_time_s).collect()]
         }
         Candidate::VortexLag => {
-            // A slower state in the moment (through the eGK's own map) and in the kinematics
-            // that drive it (gap-diagnosis.md section 4.2, G9: LP_tau[phi] - phi).
+            // A second, slower flow state (gap-diagnosis.md sections 2.9 and 4.2, G9), in the
+            // forms a rig can have: a share of the eGK's response through the slower state
+            // (LP_tau[C_l,eGK] - C_l,eGK), or a new state driven by the disturbance's physical
+            // inputs, the sideslip that rolling at incidence makes and the roll rate (LP_tau[u]).
             let tau_s = value("tau_s");
+            let alpha = run.alpha_deg.to_radians();
+            let sideslip: Vec<f64> = run.phi_rad.iter().map(|phi| (alpha.sin() * phi.sin()).asin()).collect();
+            let p_hat: Vec<f64> = run.phi_dot_rad_s.iter().map(|rate| rate * context.half_span_time_s).collect();
             vec![
                 difference(&first_order_lag(&run.cl_egk, tau_s, dt_s), &run.cl_egk),
-                difference(&first_order_lag(&run.phi_rad, tau_s, dt_s), &run.phi_rad),
+                first_order_lag(&sideslip, tau_s, dt_s),
+                first_order_lag(&p_hat, tau_s, dt_s),
             ]
         }
         Candidate::Coupling => {
@@ -280,10 +344,13 @@ pub fn columns(
             let differential: Vec<f64> = (0..n).map(|idx| (run.cmu[0][idx] - run.cmu[1][idx]) / cmu_ref).collect();
             let total: Vec<f64> = (0..n).map(|idx| (run.cmu[0][idx] + run.cmu[1][idx]) / cmu_ref).collect();
             let p_hat: Vec<f64> = run.phi_dot_rad_s.iter().map(|rate| rate * context.half_span_time_s).collect();
-            let mut columns = Vec::with_capacity(6);
+            // The jets' own moment, with their dynamics (the paper's C_l,Roll x C_l,AFC terms).
+            let afc = run.cl_afc();
+            let mut columns = Vec::with_capacity(9);
             for variable in [&run.cl_egk, &run.phi_rad, &p_hat] {
                 columns.push((0..n).map(|idx| variable[idx] * differential[idx]).collect());
                 columns.push((0..n).map(|idx| variable[idx] * total[idx]).collect());
+                columns.push((0..n).map(|idx| if run.rolls() { variable[idx] * afc[idx] } else { 0.0 }).collect());
             }
             columns
         }
@@ -297,16 +364,47 @@ pub fn columns(
             ]
         }
         Candidate::BiasDrift => {
+            // Per run, from its own tare at its start: a smooth trend (powers of time) or a zero
+            // that wanders (piecewise linear between knots; beyond the training part it holds
+            // its last slope, all a drift lets anyone predict).
             let duration = run.t_s.last().copied().unwrap_or(1.0).max(f64::MIN_POSITIVE);
-            let mut out = vec![vec![0.0; n]; 2 * context.n_runs];
-            for (idx, t) in run.t_s.iter().enumerate() {
-                let x = t / duration;
-                out[2 * run_idx][idx] = x;
-                out[2 * run_idx + 1][idx] = x * x;
+            let shapes: Vec<Box<dyn Fn(f64) -> f64>> = if value("knot_spacing_s") > 0.0 {
+                let spacing = value("knot_spacing_s");
+                let knots = (duration / spacing).floor() as usize;
+                std::iter::once(Box::new(move |t: f64| t / duration) as Box<dyn Fn(f64) -> f64>)
+                    .chain((1..=knots).map(move |k| {
+                        let knot = k as f64 * spacing;
+                        Box::new(move |t: f64| (t - knot).max(0.0) / duration) as Box<dyn Fn(f64) -> f64>
+                    }))
+                    .collect()
+            } else {
+                (1..=value("degree").round().max(1.0) as i32)
+                    .map(|power| Box::new(move |t: f64| (t / duration).powi(power)) as Box<dyn Fn(f64) -> f64>)
+                    .collect()
+            };
+            let width = drift_width(hyper, context);
+            let mut out = vec![vec![0.0; n]; width * context.n_runs];
+            for (slot, shape) in shapes.iter().enumerate().take(width) {
+                let column = &mut out[width * run_idx + slot];
+                for (idx, t) in run.t_s.iter().enumerate() {
+                    column[idx] = shape(*t);
+                }
             }
             out
         }
         Candidate::Recalibration => vec![run.cl_egk.clone(), run.cl_afc()],
+    }
+}
+
+/// Columns per run of the drift at a grid point: the degree, or one slope and one hinge per knot
+/// of the longest run.
+fn drift_width(hyper: &[(&'static str, f64)], context: &Context<'_>) -> usize {
+    let value = |key: &str| hyper.iter().find(|(name, _)| *name == key).map_or(0.0, |(_, v)| *v);
+    let spacing = value("knot_spacing_s");
+    if spacing > 0.0 {
+        1 + (context.longest_run_s / spacing).floor() as usize
+    } else {
+        value("degree").round().max(1.0) as usize
     }
 }
 

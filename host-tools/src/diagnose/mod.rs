@@ -37,7 +37,7 @@ use crate::fit::pipeline::{FitConfig, fit_dataset};
 use crate::fit::split::Split;
 use attribution::Profiled;
 use candidates::{Candidate, Context};
-use result::{Confounding, Diagnosis, EffectResult, Gap, Unexplained, Verdict, Where};
+use result::{Confounding, Diagnosis, EffectResult, Gap, Unexplained, Verdict, Where, finite_or_null};
 use sensor::{ParamValue, SensorFinding};
 
 /// Smallest effect the diagnosis names, as a ratio of its RMS to the stream's noise RMS: a
@@ -117,8 +117,15 @@ pub fn default_signature() -> Signature {
 }
 
 impl Signature {
+    /// What a candidate removes out of sample on data the sim matches, in noise variances: the
+    /// floor its evidence must clear (never below zero: a candidate that predicts worse than
+    /// nothing there sets no floor).
     fn of(&self, key: &str) -> f64 {
-        self.explained_to_noise.get(key).copied().unwrap_or(0.0)
+        self.explained_to_noise.get(key).copied().unwrap_or(0.0).max(0.0)
+    }
+
+    fn probe_of(&self, group: &str) -> f64 {
+        self.probe_to_noise.get(group).copied().unwrap_or(0.0).max(0.0)
     }
 
     /// The sim's own gap on runs of this kind at this angle of attack (the kind's mean when the
@@ -153,6 +160,10 @@ pub enum DiagnoseError {
     /// The dataset has no samples to diagnose.
     #[error("the dataset has no runs with samples")]
     Empty,
+    /// A figure of the contract came out non-finite (degenerate data): refused rather than
+    /// written as a made-up number.
+    #[error("the diagnosis computed a non-finite {0}; nothing is written")]
+    NotFinite(String),
     /// A run's sample rate is not the sim's fixed step.
     #[error("{file}: sampled at {sample_hz} Hz, but the sim steps at {model_hz} Hz (fit a model on data at this rate)")]
     Rate {
@@ -176,6 +187,12 @@ pub enum SimSource {
 
 /// Diagnoses `dataset` against `model` (or against nominal models fitted on its training part).
 /// `progress` is called with the name of each stage.
+///
+/// The stages, each with a typed result: the sim on the recorded inputs ([`Streams`]); the
+/// balance candidates, profiled on the training part and chosen on the selection part
+/// ([`BalanceAttribution`]); the structure probe ([`ProbeResult`]); the sensor candidates
+/// ([`SensorAttribution`]); the gap per run ([`GapSummary`]); the verdict; and the report of the
+/// named effects on the held-out part, which chooses nothing.
 pub fn diagnose(
     dataset: &Dataset,
     model: Option<(&CoefficientSet, String)>,
@@ -183,6 +200,171 @@ pub fn diagnose(
     progress: &(dyn Fn(&str) + Sync),
 ) -> Result<(Diagnosis, Evidence), DiagnoseError> {
     let clock = Instant::now();
+    let (set, source) = sim_of(dataset, model, config, progress)?;
+    progress("running the sim on the recorded inputs");
+    let streams = Streams::build(dataset, &set, config);
+    let floor = config.signature.clone().unwrap_or_default();
+
+    progress("profiling the balance candidates");
+    let balance = BalanceAttribution::run(&streams, &floor);
+    progress("probing the remainder and the pressure channels");
+    let probe = ProbeResult::run(&streams, &balance, &floor);
+    let sensor = SensorAttribution::run(&streams, &floor);
+    let gaps = GapSummary::run(&streams, &floor);
+    let decision = Decision::make(&streams, &balance, &probe, &sensor, &floor);
+
+    let context = streams.context();
+    let own_signature = Signature {
+        explained_to_noise: balance
+            .first_round
+            .iter()
+            .map(|p| (p.candidate.name().to_owned(), streams.to_noise(p.selected())))
+            .chain(sensor.findings.iter().map(|f| (f.floor_key(), sensor_selected_to_noise(f))))
+            .filter(|(_, value)| value.is_finite())
+            .collect(),
+        probe_to_noise: probe.base.clone(),
+        gap_to_noise_by_kind: gaps.by_kind.clone(),
+        pressure_alignment_s: pressure_lag::Alignment::new(&streams.runs, |run| run.fit_samples().collect())
+            .map(|alignment| alignment.shared()),
+    };
+
+    let mut effects = Vec::new();
+    let mut where_ = Where::default();
+    let mut unexplained = None;
+    let runs = &streams.runs;
+    match &decision {
+        Decision::Sensor(finding) => {
+            effects.push(sensor_effect(finding));
+            where_.block = Some("sensor".into());
+            where_.channel = finding.channel.clone();
+            where_.channels = finding.channels.clone();
+            where_.alpha_deg = alphas(runs, &vec![true; runs.len()]);
+        }
+        Decision::Balance => {
+            let mut cumulative = streams.residuals.clone();
+            for profiled in &balance.named {
+                effects.push(balance_effect(profiled, runs, &cumulative, &context, &floor));
+                cumulative = attribution::subtract(profiled, runs, &cumulative, &context);
+            }
+            let top = &balance.named[0];
+            where_.block = Some(top.candidate.block().name().into());
+            where_.alpha_deg = alphas(runs, &top.fit.touched);
+            where_.runs =
+                runs.iter().zip(&top.fit.touched).filter(|(_, t)| **t).map(|(run, _)| run.file.clone()).collect();
+        }
+        Decision::Unattributed => {
+            let touched: Vec<bool> = (0..runs.len()).map(|idx| gaps.excess_runs.contains(&idx)).collect();
+            where_.alpha_deg = alphas(runs, &touched);
+            where_.runs = gaps.excess_runs.iter().map(|&idx| runs[idx].file.clone()).collect();
+            let best = balance.first_round.first();
+            unexplained = Some(Unexplained {
+                description: describe_structure(
+                    runs,
+                    &gaps.excess_runs,
+                    probe.structure,
+                    best.map(|p| (p.candidate.name(), balance.excess(p, &streams, &floor))),
+                ),
+                best_candidate: best.map(|p| p.candidate.name().to_owned()),
+                best_candidate_explained_to_noise: best
+                    .and_then(|p| finite_or_null(balance.excess(p, &streams, &floor))),
+                probe_explained_to_noise: probe.structure,
+            });
+        }
+        Decision::None => {}
+    }
+    let verdict = decision.verdict();
+
+    let confounded = confounding(&balance.first_round, runs, &streams.residuals, &context);
+    progress("the gap ledger");
+    let ledger = gap_ledger::build(runs, &balance.remainder, streams.noise_var, 1);
+    let sensor_verdict = matches!(decision, Decision::Sensor(_));
+    if verdict != Verdict::None && !sensor_verdict {
+        where_.band_hz = ledger.dominant_band_hz;
+    }
+    // For a sensor verdict the gap is the channel's innovation (or the lag's deviation), in Cp.
+    let stream_gap = match &decision {
+        Decision::Sensor(finding) if finding.heldout.n > 0 => finding.heldout,
+        _ => gaps.heldout,
+    };
+    where_.regimes = ledger
+        .regimes
+        .iter()
+        .map(|r| result::RegimeShareSummary { label: r.label.clone(), share: finite_or_null(r.share) })
+        .collect();
+    let floor_kinds: Vec<f64> =
+        floor.gap_to_noise_by_kind.iter().filter(|(k, _)| !k.contains('@')).map(|(_, v)| *v).collect();
+    let diagnosis = Diagnosis {
+        verdict,
+        gap: Gap {
+            heldout_rms: stream_gap.gap_before(),
+            noise_rms: stream_gap.noise_var.sqrt(),
+            heldout_raw_rms: stream_gap.mse_before.sqrt(),
+            floor_rms: (floor_kinds.iter().sum::<f64>().max(0.0) / floor_kinds.len().max(1) as f64
+                * gaps.heldout.noise_var)
+                .sqrt(),
+            stream: if sensor_verdict { "pressure" } else { "balance" }.into(),
+        },
+        where_,
+        effects,
+        unexplained,
+        confounded,
+        candidates: balance
+            .first_round
+            .iter()
+            .map(result::CandidateSummary::from_profiled(streams.noise_var))
+            .chain(sensor.findings.iter().map(result::CandidateSummary::from_sensor))
+            .collect(),
+        sim: match &source {
+            SimSource::Given(name) => format!("the given coefficient set ({name})"),
+            SimSource::FittedOnTraining => "nominal models fitted on the training part of this dataset".into(),
+        },
+        split: format!(
+            "{}; the diagnosis fits candidates on the training part less its validation part, chooses on the validation part and reports on the held-out part",
+            config.split.describe()
+        ),
+        noise_var_training: streams.noise_var,
+        autocorrelation_time_samples: streams.autocorrelation_time,
+        signature: own_signature,
+        ledger,
+        elapsed_s: clock.elapsed().as_secs_f64(),
+    };
+    diagnosis.check_finite()?;
+    let Streams { runs, .. } = streams;
+    Ok((
+        diagnosis,
+        Evidence { runs, first_round: balance.first_round, named: balance.named, remainder: balance.remainder },
+    ))
+}
+
+impl Diagnosis {
+    /// Every number the contract requires is finite (shared/spec/diagnosis.md).
+    fn check_finite(&self) -> Result<(), DiagnoseError> {
+        let mut figures =
+            vec![("gap.heldout_rms".to_owned(), self.gap.heldout_rms), ("gap.noise_rms".into(), self.gap.noise_rms)];
+        for (idx, effect) in self.effects.iter().enumerate() {
+            for (name, value) in [
+                ("heldout_rms_before", effect.heldout_rms_before),
+                ("heldout_rms_after", effect.heldout_rms_after),
+                ("shrink", effect.shrink),
+            ] {
+                figures.push((format!("effects[{idx}].{name}"), value));
+            }
+        }
+        match figures.into_iter().find(|(_, value)| !value.is_finite()) {
+            Some((name, _)) => Err(DiagnoseError::NotFinite(name)),
+            None => Ok(()),
+        }
+    }
+}
+
+/// The sim: the given coefficient set, or nominal models fitted on the training part; checked
+/// against the recording's sample rate.
+fn sim_of(
+    dataset: &Dataset,
+    model: Option<(&CoefficientSet, String)>,
+    config: &DiagnoseConfig,
+    progress: &(dyn Fn(&str) + Sync),
+) -> Result<(CoefficientSet, SimSource), DiagnoseError> {
     if dataset.runs.iter().all(|run| run.channels.is_empty()) {
         return Err(DiagnoseError::Empty);
     }
@@ -203,244 +385,319 @@ pub fn diagnose(
             model_hz,
         });
     }
-    progress("running the sim on the recorded inputs");
-    let runs = streams::build(dataset, &set, &config.split, config.heldout_only);
-    let context = Context {
-        set: &set,
-        moment_scale_nm: dataset.tunnel.dynamic_pressure_pa() * dataset.wing.area_m2 * dataset.wing.span_m,
-        half_span_time_s: dataset.wing.span_m / (2.0 * dataset.tunnel.u_inf_mps),
-        cmu_ref: runs.iter().flat_map(|run| run.cmu.iter().flatten()).copied().fold(0.0, f64::max),
-        n_runs: runs.len(),
-        slow_tau_min_s: runs
-            .iter()
-            .map(|run| 2.0 * f64::from(estimator_core::egk::params_at(&set, run.alpha_deg as f32).tau1_s))
-            .fold(0.05, f64::max),
-        resonance_min_hz: candidates::resonance_min_hz(&runs),
-    };
+    Ok((set, source))
+}
 
-    progress("profiling the balance candidates");
-    let residuals: Vec<Vec<f64>> = runs.iter().map(|run| run.residual.clone()).collect();
-    let base_segments = attribution::segments(&runs, &residuals);
-    let noise_var = regression::difference_noise_var(&base_segments, None);
-    let autocorrelation_time = regression::integrated_autocorrelation(&base_segments, 200);
-    let min_explained = MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE * noise_var;
-    let first_round = profile_all(&runs, &residuals, &context, autocorrelation_time);
-    let to_noise = |value: f64| value / noise_var.max(f64::MIN_POSITIVE);
-    let floor = config.signature.clone().unwrap_or_default();
-    let excess = |p: &Profiled| to_noise(p.explained()) - floor.of(p.candidate.name());
+/// Stage 1: the sim driven by the recorded inputs, and the balance residual's noise.
+pub struct Streams {
+    /// Every run's streams.
+    pub runs: Vec<streams::RunStreams>,
+    /// The balance residual of every run.
+    pub residuals: Vec<Vec<f64>>,
+    /// The balance residual's white-noise variance on the training part, C_l^2.
+    pub noise_var: f64,
+    /// Integrated autocorrelation time of the balance residual, samples.
+    pub autocorrelation_time: f64,
+    set: CoefficientSet,
+    moment_scale_nm: f64,
+    half_span_time_s: f64,
+    resonance_min_hz: f64,
+}
 
-    // Forward selection: name the best qualifying candidate, subtract it, repeat on the rest.
-    let mut named: Vec<Profiled> = Vec::new();
-    let mut remainder = residuals.clone();
-    let mut round = first_round.clone();
-    while named.len() < 3 {
-        let Some(best) = round.iter().find(|p| !named.iter().any(|n| n.candidate == p.candidate)).cloned() else {
-            break;
+impl Streams {
+    fn build(dataset: &Dataset, set: &CoefficientSet, config: &DiagnoseConfig) -> Self {
+        let runs = streams::build(dataset, set, &config.split, config.heldout_only);
+        let residuals: Vec<Vec<f64>> = runs.iter().map(|run| run.residual.clone()).collect();
+        let segments = attribution::segments(&runs, &residuals);
+        let noise_var = regression::difference_noise_var(&segments, None);
+        let autocorrelation_time = regression::integrated_autocorrelation(&segments, 200);
+        let resonance_min_hz = candidates::resonance_min_hz(&runs);
+        Self {
+            noise_var,
+            autocorrelation_time,
+            residuals,
+            set: *set,
+            moment_scale_nm: dataset.tunnel.dynamic_pressure_pa() * dataset.wing.area_m2 * dataset.wing.span_m,
+            half_span_time_s: dataset.wing.span_m / (2.0 * dataset.tunnel.u_inf_mps),
+            resonance_min_hz,
+            runs,
+        }
+    }
+
+    /// What the candidates' regressors need besides the runs.
+    fn context(&self) -> Context<'_> {
+        Context {
+            set: &self.set,
+            moment_scale_nm: self.moment_scale_nm,
+            half_span_time_s: self.half_span_time_s,
+            cmu_ref: self.runs.iter().flat_map(|run| run.cmu.iter().flatten()).copied().fold(0.0, f64::max),
+            n_runs: self.runs.len(),
+            slow_tau_min_s: self
+                .runs
+                .iter()
+                .map(|run| 2.0 * f64::from(estimator_core::egk::params_at(&self.set, run.alpha_deg as f32).tau1_s))
+                .fold(0.05, f64::max),
+            resonance_min_hz: self.resonance_min_hz,
+            alphas_deg: {
+                let mut alphas: Vec<f64> = self.runs.iter().map(|run| run.alpha_deg).collect();
+                alphas.sort_by(f64::total_cmp);
+                alphas.dedup();
+                alphas
+            },
+            longest_run_s: self.runs.iter().map(|run| run.t_s.last().copied().unwrap_or(0.0)).fold(0.0, f64::max),
+        }
+    }
+
+    /// A mean square in units of the balance noise variance.
+    fn to_noise(&self, value: f64) -> f64 {
+        value / self.noise_var.max(f64::MIN_POSITIVE)
+    }
+}
+
+/// Stage 2: the balance candidates, profiled on the training part, ranked by their evidence,
+/// and named by forward selection when they qualify on the selection part.
+pub struct BalanceAttribution {
+    /// Every candidate on the original residual, best first.
+    pub first_round: Vec<Profiled>,
+    /// The named effects, in the order they were selected.
+    pub named: Vec<Profiled>,
+    /// The balance residual after the named effects.
+    pub remainder: Vec<Vec<f64>>,
+}
+
+impl BalanceAttribution {
+    fn run(streams: &Streams, floor: &Signature) -> Self {
+        let context = streams.context();
+        let runs = &streams.runs;
+        let first_round = profile_all(runs, &streams.residuals, &context, streams.autocorrelation_time);
+        let mut named: Vec<Profiled> = Vec::new();
+        let mut remainder = streams.residuals.clone();
+        let mut round = first_round.clone();
+        let this = Self { first_round: Vec::new(), named: Vec::new(), remainder: Vec::new() };
+        while named.len() < 3 {
+            let Some(best) = round.iter().find(|p| !named.iter().any(|n| n.candidate == p.candidate)).cloned() else {
+                break;
+            };
+            if !this.qualifies(&best, streams, floor) {
+                break;
+            }
+            remainder = attribution::subtract(&best, runs, &remainder, &context);
+            named.push(best);
+            round = profile_all(runs, &remainder, &context, streams.autocorrelation_time);
+        }
+        Self { first_round, named, remainder }
+    }
+
+    /// What a candidate removes on the selection part beyond the sim's own signature, in noise
+    /// variances.
+    fn excess(&self, profiled: &Profiled, streams: &Streams, floor: &Signature) -> f64 {
+        streams.to_noise(profiled.selected()) - floor.of(profiled.candidate.name())
+    }
+
+    /// Decisive evidence on the training part and at least an effect of
+    /// [`MIN_EFFECT_TO_NOISE`] of the noise, out of sample, beyond the signature.
+    fn qualifies(&self, profiled: &Profiled, streams: &Streams, floor: &Signature) -> bool {
+        profiled.delta_bic >= MIN_DELTA_BIC
+            && self.excess(profiled, streams, floor) >= MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE
+    }
+
+    /// The strength of the leading named effect (0 without one).
+    fn strength(&self, streams: &Streams, floor: &Signature) -> f64 {
+        self.named.first().map_or(0.0, |p| self.excess(p, streams, floor))
+    }
+}
+
+/// Stage 3: the structure probe, fitted on the training part and measured on the selection
+/// part, on the original residual and on the remainder after the named effects.
+pub struct ProbeResult {
+    /// Per probe group, what it removes of the original residual out of sample, in noise
+    /// variances.
+    pub base: BTreeMap<String, f64>,
+    /// Structure beyond the signature in the remainder (the group that finds most), in noise
+    /// variances.
+    pub structure: f64,
+    /// The remainder holds structure beyond what the named effect may leave.
+    pub remainder_structured: bool,
+}
+
+impl ProbeResult {
+    fn run(streams: &Streams, balance: &BalanceAttribution, floor: &Signature) -> Self {
+        let runs = &streams.runs;
+        let probe_of = |residuals: &[Vec<f64>], groups: &[&str]| -> BTreeMap<String, f64> {
+            let segments = attribution::segments(runs, residuals);
+            groups
+                .iter()
+                .map(|group| {
+                    let columns = attribution::probe_columns(runs, group);
+                    let removed = regression::fit_through_origin(&segments, &columns).map_or(0.0, |fit| {
+                        regression::selection_gap(&segments, &columns, &fit.beta, &fit.touched).removed()
+                    });
+                    ((*group).to_owned(), streams.to_noise(removed))
+                })
+                .collect()
         };
-        if !(best.delta_bic >= MIN_DELTA_BIC
-            && excess(&best) >= min_explained / noise_var.max(f64::MIN_POSITIVE)
-            && best.heldout.shrink() > 0.0)
-        {
-            break;
-        }
-        remainder = attribution::subtract(&best, &runs, &remainder, &context);
-        named.push(best);
-        round = profile_all(&runs, &remainder, &context, autocorrelation_time);
-    }
-
-    progress("probing the remainder and the pressure channels");
-    let probe_of = |residuals: &[Vec<f64>]| -> BTreeMap<String, f64> {
-        let segments = attribution::segments(&runs, residuals);
-        attribution::PROBE_GROUPS
-            .iter()
-            .map(|group| {
-                let explained = regression::fit(&segments, &attribution::probe_columns(&runs, group))
-                    .map_or(0.0, |fit| fit.explained_per_sample());
-                ((*group).to_owned(), to_noise(explained))
-            })
-            .collect()
-    };
-    let probe_base = probe_of(&residuals);
-    let probe_now = if named.is_empty() { probe_base.clone() } else { probe_of(&remainder) };
-    // Structure beyond the floor, in the group that finds most.
-    let probe_explained = probe_now
-        .iter()
-        .map(|(group, value)| value - floor.probe_to_noise.get(group).copied().unwrap_or(0.0))
-        .fold(0.0, f64::max);
-    let sensor = sensor::findings(&runs, floor.pressure_alignment_s.unwrap_or(0.0));
-    let sensor_excess = |f: &SensorFinding| f.explained / f.noise_var.max(f64::MIN_POSITIVE) - floor.of(&f.floor_key());
-    let min_ratio = MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE;
-    let mut sensor_ranked: Vec<&SensorFinding> = sensor
-        .iter()
-        .filter(|f| {
-            sensor_excess(f) >= min_ratio
-                && f.delta_bic >= MIN_DELTA_BIC
-                && (f.heldout.n == 0 || f.heldout.shrink() > 0.0)
-        })
-        .collect();
-    sensor_ranked.sort_by(|a, b| sensor_excess(b).total_cmp(&sensor_excess(a)));
-    let sensor_named: Vec<&SensorFinding> = sensor_ranked.into_iter().take(1).collect();
-
-    // The gap as it stands, on every run's held-out part, and per kind beyond the signature.
-    let all_touched = vec![true; runs.len()];
-    let gap = regression::heldout_gap(&base_segments, &vec![Vec::new(); runs.len()], &[], &all_touched);
-    // Each run's held-out gap beyond noise, in noise variances, and its sample count.
-    let run_gaps: Vec<(f64, usize)> = base_segments
-        .iter()
-        .map(|segment| {
-            let g = regression::heldout_gap(std::slice::from_ref(segment), &[Vec::new()], &[], &[true]);
-            (to_noise(g.mse_before - g.noise_var), g.n)
-        })
-        .collect();
-    let mut gap_by_kind: BTreeMap<String, (f64, usize)> = BTreeMap::new();
-    for (run, &(gap_to_noise, n)) in runs.iter().zip(&run_gaps) {
-        for key in [run.kind.as_str().to_owned(), kind_alpha_key(run.kind.as_str(), run.alpha_deg)] {
-            let slot = gap_by_kind.entry(key).or_default();
-            slot.0 += gap_to_noise * n as f64;
-            slot.1 += n;
-        }
-    }
-    let gap_by_kind: BTreeMap<String, f64> =
-        gap_by_kind.into_iter().map(|(kind, (sum, n))| (kind, if n == 0 { 0.0 } else { sum / n as f64 })).collect();
-    // A run's gap counts beyond the floor by at least an effect of half the noise RMS and
-    // outside the scatter of both mean squares (the floor's taken as equally uncertain
-    // relative to its size).
-    let excess_runs: Vec<usize> = (0..runs.len())
-        .filter(|&idx| {
-            let floor_gap = floor.gap_of(runs[idx].kind.as_str(), runs[idx].alpha_deg);
-            let excess = run_gaps[idx].0 - floor_gap;
-            let standard_error = to_noise(regression::mean_square_standard_error(&base_segments[idx]));
-            let relative_floor = (floor_gap + 1.0) / (run_gaps[idx].0 + 1.0).max(f64::MIN_POSITIVE);
-            let scatter = standard_error * (1.0 + relative_floor * relative_floor).sqrt();
-            excess >= min_ratio && excess >= GAP_SIGNIFICANCE_Z * scatter
-        })
-        .collect();
-    let own_signature = Signature {
-        // A channel without data (a dead tap in the fitted recording) explains nothing and has
-        // no noise: its NaN is left out, and a missing key reads as zero.
-        explained_to_noise: first_round
-            .iter()
-            .map(|p| (p.candidate.name().to_owned(), to_noise(p.explained())))
-            .chain(sensor.iter().map(|f| (f.floor_key(), f.explained.min(1e12) / f.noise_var.max(f64::MIN_POSITIVE))))
-            .filter(|(_, value)| value.is_finite())
-            .collect(),
-        probe_to_noise: probe_base,
-        gap_to_noise_by_kind: gap_by_kind,
-        pressure_alignment_s: pressure_lag::Alignment::new(&runs, |run| run.training.clone())
-            .map(|alignment| alignment.shared()),
-    };
-
-    let balance_strength = named.first().map_or(0.0, &excess);
-    let sensor_strength = sensor_named.first().map_or(0.0, |f| sensor_excess(f));
-    let remainder_structured = named
-        .first()
-        .is_some_and(|top| probe_explained >= MIN_REMAINDER_TO_NOISE.max(MAX_REMAINDER_SHARE * excess(top)));
-
-    let mut effects = Vec::new();
-    let mut where_ = Where::default();
-    let mut unexplained = None;
-    let verdict;
-    if sensor_strength > balance_strength && !sensor_named.is_empty() {
-        verdict = Verdict::Effect;
-        let finding = sensor_named[0];
-        effects.push(sensor_effect(finding));
-        where_.block = Some("sensor".into());
-        where_.channel = finding.channel.clone();
-        where_.channels = finding.channels.clone();
-        where_.alpha_deg = alphas(&runs, &vec![true; runs.len()]);
-    } else if !named.is_empty() && !remainder_structured {
-        verdict = Verdict::Effect;
-        let mut cumulative = residuals.clone();
-        for profiled in &named {
-            effects.push(balance_effect(profiled, &runs, &cumulative, &context, &floor));
-            cumulative = attribution::subtract(profiled, &runs, &cumulative, &context);
-        }
-        for finding in &sensor_named {
-            effects.push(sensor_effect(finding));
-        }
-        let top = &named[0];
-        where_.block = Some(top.candidate.block().name().into());
-        where_.alpha_deg = alphas(&runs, &top.fit.touched);
-        where_.runs = runs.iter().zip(&top.fit.touched).filter(|(_, t)| **t).map(|(run, _)| run.file.clone()).collect();
-    } else if !excess_runs.is_empty() || remainder_structured {
-        verdict = Verdict::Unattributed;
-        let touched: Vec<bool> = (0..runs.len()).map(|idx| excess_runs.contains(&idx)).collect();
-        where_.block = None;
-        where_.alpha_deg = alphas(&runs, &touched);
-        where_.runs = excess_runs.iter().map(|&idx| runs[idx].file.clone()).collect();
-        unexplained = Some(Unexplained {
-            description: describe_structure(
-                &runs,
-                &excess_runs,
-                probe_explained,
-                first_round.first().map(|p| (p.candidate.name(), excess(p))),
-            ),
-            best_candidate: first_round.first().map(|p| p.candidate.name().to_owned()),
-            best_candidate_explained_to_noise: first_round.first().map_or(0.0, excess),
-            probe_explained_to_noise: probe_explained,
+        let base = probe_of(&streams.residuals, &attribution::PROBE_GROUPS);
+        let now = if balance.named.is_empty() {
+            base.clone()
+        } else {
+            probe_of(&balance.remainder, &attribution::REMAINDER_PROBE_GROUPS)
+        };
+        let structure = now.iter().map(|(group, value)| value - floor.probe_of(group)).fold(0.0, f64::max);
+        let remainder_structured = balance.named.first().is_some_and(|top| {
+            structure >= MIN_REMAINDER_TO_NOISE.max(MAX_REMAINDER_SHARE * balance.excess(top, streams, floor))
         });
-    } else {
-        verdict = Verdict::None;
+        Self { base, structure, remainder_structured }
+    }
+}
+
+/// Stage 4: the sensor candidates on the pressure channels, and the one named if it qualifies.
+pub struct SensorAttribution {
+    /// Every finding, strongest first.
+    pub findings: Vec<SensorFinding>,
+    /// The qualifying finding with the most excess, if any.
+    pub named: Option<SensorFinding>,
+}
+
+/// What a sensor finding removes on the selection part over its noise variance (infinite for a
+/// dead channel, whose whole signal is the gap).
+fn sensor_selected_to_noise(finding: &SensorFinding) -> f64 {
+    if finding.explained.is_infinite() {
+        return f64::INFINITY;
+    }
+    finding.selection.removed() / finding.noise_var.max(f64::MIN_POSITIVE)
+}
+
+impl SensorAttribution {
+    fn run(streams: &Streams, floor: &Signature) -> Self {
+        let findings = sensor::findings(&streams.runs, floor.pressure_alignment_s.unwrap_or(0.0));
+        let min_ratio = MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE;
+        let named = findings
+            .iter()
+            .filter(|f| Self::excess_of(f, floor) >= min_ratio && f.delta_bic >= MIN_DELTA_BIC)
+            .max_by(|a, b| Self::excess_of(a, floor).total_cmp(&Self::excess_of(b, floor)))
+            .cloned();
+        Self { findings, named }
     }
 
-    let confounded = confounding(&first_round, &runs, &residuals, &context);
-    progress("the gap ledger");
-    let ledger = gap_ledger::build(&runs, &remainder, noise_var, 1);
-    let sensor_verdict = verdict == Verdict::Effect && where_.block.as_deref() == Some("sensor");
-    if verdict != Verdict::None && !sensor_verdict {
-        where_.band_hz = ledger.dominant_band_hz;
+    fn excess_of(finding: &SensorFinding, floor: &Signature) -> f64 {
+        sensor_selected_to_noise(finding) - floor.of(&finding.floor_key())
     }
-    // For a sensor verdict the gap is the channel's innovation, in Cp.
-    let stream_gap = match sensor_named.first() {
-        Some(finding) if sensor_verdict && finding.heldout.n > 0 => finding.heldout,
-        _ => gap,
-    };
-    where_.regimes = ledger
-        .regimes
-        .iter()
-        .map(|r| result::RegimeShareSummary { label: r.label.clone(), share: finite(r.share) })
-        .collect();
-    let diagnosis = Diagnosis {
-        verdict,
-        gap: Gap {
-            heldout_rms: finite(stream_gap.gap_before()),
-            noise_rms: finite(stream_gap.noise_var.sqrt()),
-            heldout_raw_rms: finite(stream_gap.mse_before.sqrt()),
-            floor_rms: finite(
-                (floor
-                    .gap_to_noise_by_kind
-                    .iter()
-                    .filter(|(k, _)| !k.contains('@'))
-                    .map(|(_, v)| *v)
-                    .sum::<f64>()
-                    .max(0.0)
-                    / floor.gap_to_noise_by_kind.keys().filter(|k| !k.contains('@')).count().max(1) as f64
-                    * gap.noise_var)
-                    .sqrt(),
-            ),
-            stream: if sensor_verdict { "pressure" } else { "balance" }.into(),
-        },
-        where_,
-        effects,
-        unexplained,
-        confounded,
-        candidates: first_round
+
+    fn strength(&self, floor: &Signature) -> f64 {
+        self.named.as_ref().map_or(0.0, |f| Self::excess_of(f, floor))
+    }
+}
+
+/// Stage 5: the balance gap of every run on the selection part against the sim's own, and on
+/// the held-out part for the report.
+pub struct GapSummary {
+    /// The gap on every run's held-out part (for the report).
+    pub heldout: regression::HeldoutGap,
+    /// Gap beyond noise per kind of run (and kind at alpha) on the selection part, in noise
+    /// variances.
+    pub by_kind: BTreeMap<String, f64>,
+    /// Runs whose selection-part gap exceeds the sim's own by a significant margin.
+    pub excess_runs: Vec<usize>,
+}
+
+impl GapSummary {
+    fn run(streams: &Streams, floor: &Signature) -> Self {
+        let runs = &streams.runs;
+        let segments = attribution::segments(runs, &streams.residuals);
+        let all_touched = vec![true; runs.len()];
+        let no_columns = vec![Vec::new(); runs.len()];
+        let heldout = regression::heldout_gap(&segments, &no_columns, &[], &all_touched);
+        let run_gaps: Vec<(f64, usize)> = segments
             .iter()
-            .map(result::CandidateSummary::from_profiled(noise_var))
-            .chain(sensor.iter().map(result::CandidateSummary::from_sensor))
-            .collect(),
-        sim: match &source {
-            SimSource::Given(name) => format!("the given coefficient set ({name})"),
-            SimSource::FittedOnTraining => "nominal models fitted on the training part of this dataset".into(),
-        },
-        split: config.split.describe(),
-        noise_var_training: finite(noise_var),
-        autocorrelation_time_samples: finite(autocorrelation_time),
-        signature: own_signature,
-        ledger,
-        elapsed_s: clock.elapsed().as_secs_f64(),
-    };
-    Ok((diagnosis, Evidence { runs, first_round, named, remainder }))
+            .map(|segment| {
+                let g = regression::selection_gap(std::slice::from_ref(segment), &[Vec::new()], &[], &[true]);
+                (streams.to_noise(g.mse_before - g.noise_var), g.n)
+            })
+            .collect();
+        let mut by_kind: BTreeMap<String, (f64, usize)> = BTreeMap::new();
+        for (run, &(gap_to_noise, n)) in runs.iter().zip(&run_gaps) {
+            for key in [run.kind.as_str().to_owned(), kind_alpha_key(run.kind.as_str(), run.alpha_deg)] {
+                let slot = by_kind.entry(key).or_default();
+                slot.0 += gap_to_noise * n as f64;
+                slot.1 += n;
+            }
+        }
+        let by_kind =
+            by_kind.into_iter().map(|(kind, (sum, n))| (kind, if n == 0 { 0.0 } else { sum / n as f64 })).collect();
+        // A run's gap counts beyond the floor by at least an effect of half the noise RMS and
+        // outside the scatter of both mean squares (the floor's taken as equally uncertain
+        // relative to its size).
+        let min_ratio = MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE;
+        let excess_runs = (0..runs.len())
+            .filter(|&idx| {
+                let floor_gap = floor.gap_of(runs[idx].kind.as_str(), runs[idx].alpha_deg);
+                let excess = run_gaps[idx].0 - floor_gap;
+                let values: Vec<f64> = segments[idx].select.samples().map(|i| segments[idx].residual[i]).collect();
+                let select = regression::Segment {
+                    residual: &values,
+                    training: 0..0,
+                    select: regression::Interleave::default(),
+                    heldout: 0..values.len(),
+                };
+                let standard_error = streams.to_noise(regression::mean_square_standard_error(&select));
+                let relative_floor = (floor_gap + 1.0) / (run_gaps[idx].0 + 1.0).max(f64::MIN_POSITIVE);
+                let scatter = standard_error * (1.0 + relative_floor * relative_floor).sqrt();
+                excess >= min_ratio && excess >= GAP_SIGNIFICANCE_Z * scatter
+            })
+            .collect();
+        Self { heldout, by_kind, excess_runs }
+    }
+}
+
+/// Stage 6: the verdict.
+enum Decision {
+    /// A sensor effect explains the gap.
+    Sensor(Box<SensorFinding>),
+    /// The named balance effects explain the gap.
+    Balance,
+    /// A real gap with structure that no candidate explains.
+    Unattributed,
+    /// The gap is at the noise floor, or holds no structure beyond the sim's own scatter.
+    None,
+}
+
+impl Decision {
+    /// A sensor effect stronger than any balance effect wins; named balance effects win unless
+    /// the probe still finds structure after them; a gap beyond the sim's own, or structure in
+    /// the remainder, is unattributed only when something predicts part of it out of sample
+    /// (a bigger but unpredictable gap is the sim's own scatter from recording to recording,
+    /// not an effect).
+    fn make(
+        streams: &Streams,
+        balance: &BalanceAttribution,
+        probe: &ProbeResult,
+        sensor: &SensorAttribution,
+        floor: &Signature,
+    ) -> Self {
+        let balance_strength = balance.strength(streams, floor);
+        if let Some(finding) = &sensor.named
+            && sensor.strength(floor) > balance_strength
+        {
+            return Self::Sensor(Box::new(finding.clone()));
+        }
+        if !balance.named.is_empty() {
+            return if probe.remainder_structured { Self::Unattributed } else { Self::Balance };
+        }
+        // Nothing named: a gap is unattributed only where something predicts at least an effect
+        // of half the noise RMS of it out of sample; a larger gap than the sim's own that nothing
+        // predicts is its scatter from recording to recording (the runs are still listed).
+        let min_ratio = MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE;
+        let best = balance.first_round.first().map_or(0.0, |p| balance.excess(p, streams, floor));
+        if probe.structure.max(best) >= min_ratio { Self::Unattributed } else { Self::None }
+    }
+
+    fn verdict(&self) -> Verdict {
+        match self {
+            Self::Sensor(_) | Self::Balance => Verdict::Effect,
+            Self::Unattributed => Verdict::Unattributed,
+            Self::None => Verdict::None,
+        }
+    }
 }
 
 /// The working data behind a diagnosis, for the report's plots.
@@ -473,8 +730,7 @@ fn profile_all(
     // Candidates the evidence cannot tell apart from the leader (within MIN_DELTA_BIC): the one
     // with the fewest parameters leads (the pair is reported as confounded).
     if let Some(best) = all.first().map(|p| p.delta_bic) {
-        let n_runs = runs.len();
-        let k = |p: &Profiled| p.candidate.n_columns(n_runs) + p.hyper.len();
+        let k = |p: &Profiled| p.fit.beta.len() + Candidate::n_profiled(&p.hyper);
         if let Some((idx, _)) = all
             .iter()
             .enumerate()
@@ -486,10 +742,6 @@ fn profile_all(
         }
     }
     all
-}
-
-fn finite(value: f64) -> f64 {
-    if value.is_finite() { value } else { 0.0 }
 }
 
 fn alphas(runs: &[streams::RunStreams], touched: &[bool]) -> Vec<f64> {
@@ -521,14 +773,14 @@ fn balance_effect(
     EffectResult {
         name: profiled.candidate.name().into(),
         block: profiled.candidate.block().name().into(),
-        params: result::physical_params(profiled, context),
-        heldout_rms_before: finite(gap.gap_before()),
-        heldout_rms_after: finite(gap.gap_after()),
-        shrink: finite(gap.shrink()),
-        shrink_total: finite(regression::HeldoutGap { floor_var: 0.0, ..gap }.shrink()),
+        params: result::physical_params(profiled, context, &columns),
+        heldout_rms_before: gap.gap_before(),
+        heldout_rms_after: gap.gap_after(),
+        shrink: gap.shrink(),
+        shrink_total: regression::HeldoutGap { floor_var: 0.0, ..gap }.shrink(),
         shrink_measured: true,
-        delta_bic: finite(profiled.delta_bic),
-        effect_to_noise: finite((profiled.explained() / gap.noise_var.max(f64::MIN_POSITIVE)).sqrt()),
+        delta_bic: finite_or_null(profiled.delta_bic),
+        effect_to_noise: finite_or_null((profiled.explained() / gap.noise_var.max(f64::MIN_POSITIVE)).sqrt()),
         evidence: format!(
             "explains {:.3e} of C_l RMS on the training part of {} run(s) (noise {:.3e}); delta BIC {:.0}",
             profiled.explained().sqrt(),
@@ -543,7 +795,7 @@ fn sensor_effect(finding: &SensorFinding) -> EffectResult {
     let mut params = BTreeMap::new();
     for (key, value) in &finding.params {
         let json = match value {
-            ParamValue::Number(number) => serde_json::json!(finite(*number)),
+            ParamValue::Number(number) => serde_json::json!(finite_or_null(*number)),
             ParamValue::Text(text) => serde_json::json!(text),
         };
         params.insert(key.clone(), json);
@@ -557,13 +809,13 @@ fn sensor_effect(finding: &SensorFinding) -> EffectResult {
         name: finding.effect.name().into(),
         block: "sensor".into(),
         params,
-        heldout_rms_before: finite(finding.heldout.gap_before()),
-        heldout_rms_after: finite(finding.heldout.gap_after()),
-        shrink: if dead { 1.0 } else { finite(finding.heldout.shrink()) },
-        shrink_total: if dead { 1.0 } else { finite(finding.heldout.shrink()) },
+        heldout_rms_before: finding.heldout.gap_before(),
+        heldout_rms_after: finding.heldout.gap_after(),
+        shrink: if dead { 1.0 } else { finding.heldout.shrink() },
+        shrink_total: if dead { 1.0 } else { finding.heldout.shrink() },
         shrink_measured: !dead,
-        delta_bic: finite(finding.delta_bic.min(1e12)),
-        effect_to_noise: finite((finding.explained.min(1e12) / finding.noise_var.max(f64::MIN_POSITIVE)).sqrt()),
+        delta_bic: finite_or_null(finding.delta_bic),
+        effect_to_noise: finite_or_null((finding.explained / finding.noise_var.max(f64::MIN_POSITIVE)).sqrt()),
         evidence: finding.evidence.clone(),
     }
 }
@@ -614,7 +866,7 @@ fn confounding(
                 out.push(Confounding {
                     a: a.candidate.name().into(),
                     b: b.candidate.name().into(),
-                    canonical_correlation: finite(correlation),
+                    canonical_correlation: finite_or_null(correlation),
                     experiment: format!(
                         "{}; {}",
                         a.candidate.separating_experiment(),

@@ -23,7 +23,7 @@ use std::collections::BTreeMap;
 
 use nalgebra::{DMatrix, DVector};
 
-use super::regression::{self, Segment};
+use super::regression::{self, Interleave, Segment};
 use super::sensor::{ParamValue, SensorFinding, channel_name};
 use super::streams::RunStreams;
 
@@ -62,7 +62,7 @@ impl Alignment {
     /// Accumulates the Gram matrices over the samples `part(run)` of every run, per angle of
     /// attack; `None` without two usable channels or samples.
     #[must_use]
-    pub fn new(runs: &[RunStreams], part: impl Fn(&RunStreams) -> std::ops::Range<usize>) -> Option<Self> {
+    pub fn new(runs: &[RunStreams], part: impl Fn(&RunStreams) -> Vec<usize>) -> Option<Self> {
         let n_taps = runs.first()?.cp.len();
         let taps: Vec<usize> = (0..n_taps)
             .filter(|&tap| {
@@ -84,6 +84,7 @@ impl Alignment {
         for run in runs {
             let afc = run.cl_afc();
             let rows: Vec<usize> = part(run)
+                .into_iter()
                 .filter(|&idx| {
                     run.cl_measured[idx].is_finite()
                         && taps.iter().all(|&tap| run.cp[tap][idx].is_finite() && run.cp_dot[tap][idx].is_finite())
@@ -194,7 +195,7 @@ impl Alignment {
     pub fn residuals(
         &self,
         runs: &[RunStreams],
-        part: impl Fn(&RunStreams) -> std::ops::Range<usize>,
+        part: impl Fn(&RunStreams) -> Vec<usize>,
         tau_s: &[f64],
     ) -> Vec<Vec<f64>> {
         let n_taps = self.taps.len();
@@ -206,6 +207,7 @@ impl Alignment {
                 let (weights, _) = self.solve(group, tau_s);
                 let afc = run.cl_afc();
                 let raw: Vec<f64> = part(run)
+                    .into_iter()
                     .map(|idx| {
                         let mut predicted = weights[n_taps] * afc[idx];
                         for (col, &tap) in self.taps.iter().enumerate() {
@@ -277,7 +279,7 @@ fn minimise(mut f: impl FnMut(f64) -> f64, range: (f64, f64)) -> f64 {
 /// other channels hold the filter.
 #[must_use]
 pub fn finding(runs: &[RunStreams], reference_tau_s: f64) -> Option<SensorFinding> {
-    let alignment = Alignment::new(runs, |run| run.training.clone())?;
+    let alignment = Alignment::new(runs, |run| run.fit_samples().collect())?;
     let n_taps = alignment.taps().len();
     let ssr_reference = alignment.ssr(&vec![reference_tau_s; n_taps]);
     let shared = alignment.shared();
@@ -285,9 +287,11 @@ pub fn finding(runs: &[RunStreams], reference_tau_s: f64) -> Option<SensorFindin
         return None;
     }
     let taus = vec![shared; n_taps];
-    let residuals = alignment.residuals(runs, |run| run.training.clone(), &taus);
-    let segments: Vec<Segment<'_>> =
-        residuals.iter().map(|r| Segment { residual: r, training: 0..r.len(), heldout: 0..0 }).collect();
+    let residuals = alignment.residuals(runs, |run| run.fit_samples().collect(), &taus);
+    let segments: Vec<Segment<'_>> = residuals
+        .iter()
+        .map(|r| Segment { residual: r, training: 0..r.len(), select: Interleave::default(), heldout: 0..0 })
+        .collect();
     let n_eff = alignment.n() as f64 / regression::integrated_autocorrelation(&segments, 200);
     if n_eff < 2.0 || ssr_reference <= 0.0 {
         return None;
@@ -296,7 +300,7 @@ pub fn finding(runs: &[RunStreams], reference_tau_s: f64) -> Option<SensorFindin
     let lag_s = shared - reference_tau_s;
     // The lag's deviation from the true pressure is `-tau y'` (exact for a first-order lag):
     // its mean square over the channels' samples of one part.
-    let deviation = |part: &dyn Fn(&RunStreams) -> std::ops::Range<usize>, tau_s: f64| {
+    let deviation = |part: &dyn Fn(&RunStreams) -> Vec<usize>, tau_s: f64| {
         let (mut sum, mut n) = (0.0, 0usize);
         for run in runs {
             for &tap in alignment.taps() {
@@ -311,7 +315,7 @@ pub fn finding(runs: &[RunStreams], reference_tau_s: f64) -> Option<SensorFindin
         }
         (if n == 0 { 0.0 } else { sum / n as f64 }, n)
     };
-    let (explained, _) = deviation(&|run| run.training.clone(), lag_s);
+    let (explained, _) = deviation(&|run| run.fit_samples().collect(), lag_s);
     let noise_var = {
         let mut differences = Vec::new();
         for run in runs {
@@ -322,17 +326,18 @@ pub fn finding(runs: &[RunStreams], reference_tau_s: f64) -> Option<SensorFindin
         }
         regression::robust_difference_var(&mut differences)
     };
-    // Held out: the lag the held-out part shows on its own against the training estimate, as
-    // deviations in Cp (no noise in either: they are the lag's own deviations).
-    let heldout = Alignment::new(runs, |run| run.heldout.clone()).map_or(
-        regression::HeldoutGap { mse_before: 0.0, mse_after: 0.0, noise_var: 0.0, n: 0, floor_var: 0.0 },
-        |held| {
-            let tau_heldout = held.shared();
-            let (before, n) = deviation(&|run| run.heldout.clone(), (tau_heldout - reference_tau_s).max(0.0));
-            let (after, _) = deviation(&|run| run.heldout.clone(), tau_heldout.max(reference_tau_s) - shared);
+    // Selection and held out: the lag each part shows on its own against the training
+    // estimate, as deviations in Cp (no noise in either: they are the lag's own deviations).
+    let check = |part: &dyn Fn(&RunStreams) -> Vec<usize>| {
+        Alignment::new(runs, part).map_or(regression::HeldoutGap::EMPTY, |own| {
+            let tau_own = own.shared();
+            let (before, n) = deviation(part, (tau_own - reference_tau_s).max(0.0));
+            let (after, _) = deviation(part, tau_own.max(reference_tau_s) - shared);
             regression::HeldoutGap { mse_before: before, mse_after: after, noise_var: 0.0, n, floor_var: 0.0 }
-        },
-    );
+        })
+    };
+    let selection = check(&|run| run.select.samples().collect());
+    let heldout = check(&|run| run.heldout.clone().collect());
     let names: Vec<String> = alignment.taps().iter().map(|&tap| channel_name(tap)).collect();
     Some(SensorFinding {
         effect: firmware_sim::effect::Effect::PressureLag,
@@ -347,6 +352,7 @@ pub fn finding(runs: &[RunStreams], reference_tau_s: f64) -> Option<SensorFindin
         noise_var,
         delta_bic,
         heldout,
+        selection,
         evidence: format!(
             "the taps align with the balance moment once every channel is de-lagged by {:.1} ms beyond the sim's own {:.1} ms",
             1e3 * lag_s,

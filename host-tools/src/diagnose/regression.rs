@@ -4,15 +4,62 @@
 
 use nalgebra::{DMatrix, DVector};
 
-/// One run's residual and candidate columns, with its training and held-out samples.
+/// One run's residual, with the samples of the diagnosis's three parts: candidates are fitted
+/// on the training part, chosen on the selection part, and reported on the held-out part, which
+/// chooses nothing.
 #[derive(Debug, Clone)]
 pub struct Segment<'a> {
     /// Residual (NaN where missing).
     pub residual: &'a [f64],
-    /// Training samples.
+    /// Training samples (the fit part).
     pub training: std::ops::Range<usize>,
-    /// Held-out samples.
+    /// Selection samples: interleaved blocks of the training part, where the verdict and the
+    /// choice of effects are made; fits leave them out.
+    pub select: Interleave,
+    /// Held-out samples: where the named effects' shrink is reported.
     pub heldout: std::ops::Range<usize>,
+}
+
+/// The selection part: every [`Interleave::EVERY`]th block of `block` samples of a run's
+/// training part, so that an effect fitted on the other blocks is checked on samples it has
+/// not seen but between them (a drift or a slowly varying gain interpolates there; a later
+/// segment would ask it to extrapolate, which the held-out part does, for the report).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Interleave {
+    /// First sample of the training part.
+    pub start: usize,
+    /// End of the training part.
+    pub end: usize,
+    /// Samples per block (0: no selection part).
+    pub block: usize,
+}
+
+impl Interleave {
+    /// One block in this many is for selection.
+    pub const EVERY: usize = 5;
+
+    /// Blocks for a training part `range` sampled at `sample_hz`: a twentieth of the part, from
+    /// a quarter of a second to one second (longer than the noise's memory, shorter than a
+    /// drift's).
+    #[must_use]
+    pub fn over(range: std::ops::Range<usize>, sample_hz: f64) -> Self {
+        let block = (range.len() / 20).clamp((0.25 * sample_hz) as usize, sample_hz as usize).max(1);
+        Self { start: range.start, end: range.end, block }
+    }
+
+    /// True for a selection sample.
+    #[must_use]
+    pub fn contains(&self, idx: usize) -> bool {
+        self.block > 0
+            && idx >= self.start
+            && idx < self.end
+            && ((idx - self.start) / self.block) % Self::EVERY == Self::EVERY - 1
+    }
+
+    /// The selection samples.
+    pub fn samples(&self) -> impl Iterator<Item = usize> + '_ {
+        (self.start..self.end).filter(|&idx| self.contains(idx))
+    }
 }
 
 /// A least-squares fit of the residual on some columns over the training samples.
@@ -63,16 +110,24 @@ fn fit_with(segments: &[Segment<'_>], columns: &[Vec<Vec<f64>>], centre: bool) -
     let (mut ssr_base, mut ssr_base_touched, mut n, mut n_touched) = (0.0, 0.0, 0usize, 0usize);
     let mut touched = Vec::with_capacity(segments.len());
     for (segment, cols) in segments.iter().zip(columns) {
-        let idx: Vec<usize> = segment.training.clone().filter(|&i| segment.residual[i].is_finite()).collect();
+        let idx: Vec<usize> = segment
+            .training
+            .clone()
+            .filter(|&i| segment.residual[i].is_finite() && !segment.select.contains(i))
+            .collect();
         if idx.is_empty() {
             touched.push(false);
             continue;
         }
         let count = idx.len() as f64;
         let r_mean = if centre { idx.iter().map(|&i| segment.residual[i]).sum::<f64>() / count } else { 0.0 };
-        let centred: Vec<Vec<f64>> = cols
+        // Only the columns that are not identically zero on this run (per-run and per-alpha
+        // columns are zero elsewhere): the products among them.
+        let active: Vec<usize> = (0..p).filter(|&c| idx.iter().any(|&i| cols[c][i] != 0.0)).collect();
+        let centred: Vec<Vec<f64>> = active
             .iter()
-            .map(|col| {
+            .map(|&c| {
+                let col = &cols[c];
                 let mean = if centre { idx.iter().map(|&i| col[i]).sum::<f64>() / count } else { 0.0 };
                 idx.iter().map(|&i| col[i] - mean).collect()
             })
@@ -87,13 +142,13 @@ fn fit_with(segments: &[Segment<'_>], columns: &[Vec<Vec<f64>>], centre: bool) -
             n_touched += idx.len();
             ssr_base_touched += rr;
         }
-        for a in 0..p {
-            xtr[a] += centred[a].iter().zip(&r).map(|(x, y)| x * y).sum::<f64>();
-            for b in a..p {
+        for (a, &ca) in active.iter().enumerate() {
+            xtr[ca] += centred[a].iter().zip(&r).map(|(x, y)| x * y).sum::<f64>();
+            for (b, &cb) in active.iter().enumerate().skip(a) {
                 let value: f64 = centred[a].iter().zip(&centred[b]).map(|(x, y)| x * y).sum();
-                xtx[(a, b)] += value;
+                xtx[(ca, cb)] += value;
                 if a != b {
-                    xtx[(b, a)] += value;
+                    xtx[(cb, ca)] += value;
                 }
             }
         }
@@ -164,19 +219,49 @@ impl HeldoutGap {
         let before = self.gap_before();
         if before > 0.0 { 1.0 - self.gap_after() / before } else { 0.0 }
     }
+
+    /// Mean square removed, `MSE before - MSE after` (negative when the effect makes it worse).
+    #[must_use]
+    pub fn removed(&self) -> f64 {
+        self.mse_before - self.mse_after
+    }
+
+    /// No samples.
+    pub const EMPTY: Self = Self { mse_before: 0.0, mse_after: 0.0, noise_var: 0.0, n: 0, floor_var: 0.0 };
 }
 
 /// The held-out gap over the runs `touched`, before and after subtracting `sum beta_j x_j`.
 #[must_use]
 pub fn heldout_gap(segments: &[Segment<'_>], columns: &[Vec<Vec<f64>>], beta: &[f64], touched: &[bool]) -> HeldoutGap {
+    gap_over(segments, columns, beta, touched, |segment| segment.heldout.clone().collect())
+}
+
+/// The same gap on the selection part.
+#[must_use]
+pub fn selection_gap(
+    segments: &[Segment<'_>],
+    columns: &[Vec<Vec<f64>>],
+    beta: &[f64],
+    touched: &[bool],
+) -> HeldoutGap {
+    gap_over(segments, columns, beta, touched, |segment| segment.select.samples().collect())
+}
+
+fn gap_over(
+    segments: &[Segment<'_>],
+    columns: &[Vec<Vec<f64>>],
+    beta: &[f64],
+    touched: &[bool],
+    part: impl Fn(&Segment<'_>) -> Vec<usize>,
+) -> HeldoutGap {
     let (mut before, mut after, mut n) = (0.0, 0.0, 0usize);
     let mut differences = Vec::new();
     for ((segment, cols), &is_touched) in segments.iter().zip(columns).zip(touched) {
         if !is_touched {
             continue;
         }
-        let mut last: Option<f64> = None;
-        for i in segment.heldout.clone() {
+        let mut last: Option<(usize, f64)> = None;
+        for i in part(segment) {
             let r = segment.residual[i];
             if !r.is_finite() {
                 last = None;
@@ -186,10 +271,13 @@ pub fn heldout_gap(segments: &[Segment<'_>], columns: &[Vec<Vec<f64>>], beta: &[
             before += r * r;
             after += (r - effect) * (r - effect);
             n += 1;
-            if let Some(prev) = last {
+            // Differences only of neighbours (not across the gap between two selection blocks).
+            if let Some((j, prev)) = last
+                && j + 1 == i
+            {
                 differences.push(r - prev);
             }
-            last = Some(r);
+            last = Some((i, r));
         }
     }
     let mean = |sum: f64, count: usize| if count == 0 { 0.0 } else { sum / count as f64 };
@@ -334,6 +422,7 @@ mod tests {
                 predicted.push(mean_square_standard_error(&Segment {
                     residual: &series,
                     training: 0..0,
+                    select: Interleave::default(),
                     heldout: 0..n,
                 }));
             }
@@ -354,8 +443,10 @@ mod tests {
                 (0..n).map(|i| 0.7 * x[run][i] + run as f64 * 5.0 + 0.01 * (rng.random::<f64>() - 0.5)).collect()
             })
             .collect();
-        let segments: Vec<Segment<'_>> =
-            r.iter().map(|res| Segment { residual: res, training: 0..4000, heldout: 4000..n }).collect();
+        let segments: Vec<Segment<'_>> = r
+            .iter()
+            .map(|res| Segment { residual: res, training: 0..4000, select: Interleave::default(), heldout: 4000..n })
+            .collect();
         let columns: Vec<Vec<Vec<f64>>> = x.iter().map(|col| vec![col.clone()]).collect();
         let fit = fit(&segments, &columns).unwrap();
         assert!((fit.beta[0] - 0.7).abs() < 1e-3, "{:?}", fit.beta);

@@ -58,8 +58,11 @@ fn verdict_section(diagnosis: &Diagnosis) -> Section {
     }
     for pair in &diagnosis.confounded {
         paragraphs.push(format!(
-            "`{}` and `{}` cannot be told apart with this data (canonical correlation {:.3}); to separate them: {}.",
-            pair.a, pair.b, pair.canonical_correlation, pair.experiment
+            "`{}` and `{}` cannot be told apart with this data (canonical correlation {}); to separate them: {}.",
+            pair.a,
+            pair.b,
+            figure(pair.canonical_correlation, 3),
+            pair.experiment
         ));
     }
     let rows = diagnosis
@@ -75,7 +78,7 @@ fn verdict_section(diagnosis: &Diagnosis) -> Section {
                 fmt(effect.heldout_rms_before),
                 fmt(effect.heldout_rms_after),
                 format!("{:.2}", effect.shrink),
-                format!("{:.2}", effect.effect_to_noise),
+                figure(effect.effect_to_noise, 2),
                 effect.evidence.clone(),
             ]
         })
@@ -209,20 +212,31 @@ fn candidates_section(diagnosis: &Diagnosis) -> Section {
                 format!("`{}`", c.name),
                 c.block.clone(),
                 hyper,
-                format!("{:.3}", c.explained_to_noise),
-                format!("{:.1}", c.delta_bic),
-                format!("{:.2}", c.heldout_shrink),
+                figure(c.explained_to_noise, 3),
+                figure(c.selected_to_noise, 3),
+                figure(c.delta_bic, 1),
+                figure(c.heldout_shrink, 2),
             ]
         })
         .collect();
     Section {
         heading: "Which effect: every candidate".into(),
         paragraphs: vec![
-            "Each candidate is profiled over its grid of physical parameters on the training part; `explained/noise` is the mean square it explains on the runs it touches over the noise variance; `delta BIC` penalises its columns and profiled parameters on the effective number of samples. Recalibration of the existing blocks competes with the new effects.".into(),
+            "Each candidate is profiled over its grid of physical parameters on the training part; `explained/noise` is the mean square it explains on the runs it touches over the noise variance; `delta BIC` penalises its columns and profiled parameters on the effective number of samples. `removed/noise` is what the fitted candidate removes on the selection part, which it was not fitted on: an effect is named on it, beyond the sim's own signature, and its shrink is reported on the held-out part, which chooses nothing. Recalibration of the existing blocks competes with the new effects.".into(),
         ],
         tables: vec![Table {
             caption: "Candidates (balance, best first; then sensor)".into(),
-            header: ["candidate", "block", "profiled parameters", "explained/noise", "delta BIC", "held-out shrink"].map(String::from).to_vec(),
+            header: [
+                "candidate",
+                "block",
+                "profiled parameters",
+                "explained/noise (training)",
+                "removed/noise (selection)",
+                "delta BIC",
+                "held-out shrink",
+            ]
+            .map(String::from)
+            .to_vec(),
             rows,
         }],
         figures: Vec::new(),
@@ -281,4 +295,9 @@ fn plots_section(evidence: &Evidence) -> Section {
         });
     }
     Section { heading: "Plots".into(), paragraphs: Vec::new(), tables: Vec::new(), figures }
+}
+
+/// A figure with `decimals` decimals, or `n/a` where it is unknown.
+fn figure(value: Option<f64>, decimals: usize) -> String {
+    value.map_or_else(|| "n/a".to_owned(), |v| format!("{v:.decimals$}"))
 }

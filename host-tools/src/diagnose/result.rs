@@ -114,7 +114,7 @@ pub struct RegimeShareSummary {
     /// The bin.
     pub label: String,
     /// Share of the held-out residual energy.
-    pub share: f64,
+    pub share: Option<f64>,
 }
 
 /// A named effect.
@@ -139,10 +139,12 @@ pub struct EffectResult {
     /// reading left, so its 1 says nothing of the diagnosis (and stays out of a campaign's
     /// median).
     pub shrink_measured: bool,
-    /// Complexity-penalised evidence on the training part.
-    pub delta_bic: f64,
-    /// RMS of the fitted effect over the noise RMS, on the runs it touches.
-    pub effect_to_noise: f64,
+    /// Complexity-penalised evidence on the training part (null where it is unbounded: a dead
+    /// channel).
+    pub delta_bic: Option<f64>,
+    /// RMS of the fitted effect over the noise RMS, on the runs it touches (null for a dead
+    /// channel).
+    pub effect_to_noise: Option<f64>,
     /// One line of evidence.
     pub evidence: String,
 }
@@ -154,8 +156,8 @@ pub struct Unexplained {
     pub description: String,
     /// The best candidate, which was not enough.
     pub best_candidate: Option<String>,
-    /// What it explains, in noise variances.
-    pub best_candidate_explained_to_noise: f64,
+    /// What it removes on the selection part beyond the sim's signature, in noise variances.
+    pub best_candidate_explained_to_noise: Option<f64>,
     /// What the structure probe finds in the remainder, in noise variances.
     pub probe_explained_to_noise: f64,
 }
@@ -168,7 +170,7 @@ pub struct Confounding {
     /// The other.
     pub b: String,
     /// Largest canonical correlation of their regressors.
-    pub canonical_correlation: f64,
+    pub canonical_correlation: Option<f64>,
     /// The experiment that would separate them.
     pub experiment: String,
 }
@@ -183,11 +185,13 @@ pub struct CandidateSummary {
     /// Profiled nonlinear parameters (or the channel).
     pub hyper: BTreeMap<String, serde_json::Value>,
     /// Explained mean square over the noise variance, training part.
-    pub explained_to_noise: f64,
+    pub explained_to_noise: Option<f64>,
+    /// Mean square it removes on the selection part over the noise variance (what decides).
+    pub selected_to_noise: Option<f64>,
     /// Complexity-penalised evidence.
-    pub delta_bic: f64,
+    pub delta_bic: Option<f64>,
     /// Held-out shrink if it were added.
-    pub heldout_shrink: f64,
+    pub heldout_shrink: Option<f64>,
 }
 
 impl CandidateSummary {
@@ -196,10 +200,15 @@ impl CandidateSummary {
         move |profiled| Self {
             name: profiled.candidate.name().into(),
             block: profiled.candidate.block().name().into(),
-            hyper: profiled.hyper.iter().map(|(k, v)| ((*k).to_owned(), serde_json::json!(finite(*v)))).collect(),
-            explained_to_noise: finite(profiled.explained() / noise_var.max(f64::MIN_POSITIVE)),
-            delta_bic: finite(profiled.delta_bic),
-            heldout_shrink: finite(profiled.heldout.shrink()),
+            hyper: profiled
+                .hyper
+                .iter()
+                .map(|(k, v)| ((*k).to_owned(), serde_json::json!(finite_or_null(*v))))
+                .collect(),
+            explained_to_noise: finite_or_null(profiled.explained() / noise_var.max(f64::MIN_POSITIVE)),
+            selected_to_noise: finite_or_null(profiled.selected() / noise_var.max(f64::MIN_POSITIVE)),
+            delta_bic: finite_or_null(profiled.delta_bic),
+            heldout_shrink: finite_or_null(profiled.heldout.shrink()),
         }
     }
 
@@ -211,7 +220,7 @@ impl CandidateSummary {
             hyper.insert(
                 key.clone(),
                 match value {
-                    ParamValue::Number(n) => serde_json::json!(finite(*n)),
+                    ParamValue::Number(n) => serde_json::json!(finite_or_null(*n)),
                     ParamValue::Text(t) => serde_json::json!(t),
                 },
             );
@@ -220,76 +229,90 @@ impl CandidateSummary {
             name: finding.effect.name().into(),
             block: "sensor".into(),
             hyper,
-            explained_to_noise: finite(finding.explained.min(1e12) / finding.noise_var.max(f64::MIN_POSITIVE)),
-            delta_bic: finite(finding.delta_bic.min(1e12)),
-            heldout_shrink: finite(finding.heldout.shrink()),
+            explained_to_noise: finite_or_null(finding.explained / finding.noise_var.max(f64::MIN_POSITIVE)),
+            selected_to_noise: finite_or_null(finding.selection.removed() / finding.noise_var.max(f64::MIN_POSITIVE)),
+            delta_bic: finite_or_null(finding.delta_bic),
+            heldout_shrink: finite_or_null(finding.heldout.shrink()),
         }
     }
 }
 
-fn finite(value: f64) -> f64 {
-    if value.is_finite() { value } else { 0.0 }
+/// A figure for the JSON: `None` (written `null`) where it is not a finite number, never a
+/// made-up zero.
+#[must_use]
+pub fn finite_or_null(value: f64) -> Option<f64> {
+    value.is_finite().then_some(value)
 }
 
-/// The fitted regressor coefficients of a balance effect as physical parameters.
+/// The fitted regressor coefficients of a balance effect as physical parameters; with one gain
+/// per angle of attack, every gain is reported per alpha (`clp@20`). `columns` are the
+/// candidate's columns at its grid point (for the drift's size at the end of each run).
 #[must_use]
-pub fn physical_params(profiled: &Profiled, context: &Context<'_>) -> BTreeMap<String, serde_json::Value> {
+pub fn physical_params(
+    profiled: &Profiled,
+    context: &Context<'_>,
+    columns: &[Vec<Vec<f64>>],
+) -> BTreeMap<String, serde_json::Value> {
     let beta = &profiled.fit.beta;
-    let b = |idx: usize| beta.get(idx).copied().unwrap_or(0.0);
-    let mut out: BTreeMap<String, f64> = profiled.hyper.iter().map(|(k, v)| ((*k).to_owned(), *v)).collect();
-    match profiled.candidate {
-        Candidate::ActuatorDelay | Candidate::ActuatorLag => {
-            out.insert("gain".into(), b(0));
-        }
-        Candidate::InertialTare => {
-            // Balance = aero - I phi_ddot: the column's coefficient is -I / (q S b).
-            out.insert("ixx_kgm2".into(), -b(0) * context.moment_scale_nm);
-        }
-        Candidate::GravityTare => {
-            // m g d sin(phi + p) = m g d cos p sin(phi) + m g d sin p cos(phi).
-            let moment_nm = context.moment_scale_nm * b(0).hypot(b(1));
-            out.insert("weight_moment_nm".into(), moment_nm);
-            out.insert("mass_offset_kgm".into(), moment_nm / G_MPS2);
-            out.insert("phase_deg".into(), b(1).atan2(b(0)).to_degrees());
-        }
-        Candidate::RollDamping => {
-            out.insert("clp".into(), b(0));
-        }
-        Candidate::VortexLag => {
-            out.insert("weight".into(), b(0));
-            out.insert("kinematic_weight".into(), b(1));
-        }
-        Candidate::Coupling => {
-            for (idx, name) in [
-                "egk_x_differential_cmu",
-                "egk_x_total_cmu",
-                "phi_x_differential_cmu",
-                "phi_x_total_cmu",
-                "p_hat_x_differential_cmu",
-                "p_hat_x_total_cmu",
-            ]
-            .iter()
-            .enumerate()
-            {
-                out.insert((*name).into(), b(idx));
+    let per_alpha = profiled.hyper.iter().any(|(name, value)| *name == "per_alpha" && *value > 0.5);
+    let groups: Vec<String> =
+        if per_alpha { context.alphas_deg.iter().map(|a| format!("@{a}")).collect() } else { vec![String::new()] };
+    // Coefficient of base column `column` in group `group`.
+    let b = |column: usize, group: usize| beta.get(column * groups.len() + group).copied().unwrap_or(0.0);
+    let mut out: BTreeMap<String, f64> =
+        profiled.hyper.iter().filter(|(name, _)| *name != "per_alpha").map(|(k, v)| ((*k).to_owned(), *v)).collect();
+    let mut named = |names: &[&str], map: &dyn Fn(usize, f64) -> f64| {
+        for (group, suffix) in groups.iter().enumerate() {
+            for (column, name) in names.iter().enumerate() {
+                out.insert(format!("{name}{suffix}"), map(column, b(column, group)));
             }
         }
-        Candidate::BalanceResonance => {
-            out.insert("gain_load".into(), b(0));
-            out.insert("gain_inertial".into(), b(1));
+    };
+    match profiled.candidate {
+        Candidate::ActuatorDelay | Candidate::ActuatorLag => named(&["gain"], &|_, v| v),
+        // Balance = aero - I phi_ddot: the column's coefficient is -I / (q S b).
+        Candidate::InertialTare => named(&["ixx_kgm2"], &|_, v| -v * context.moment_scale_nm),
+        Candidate::RollDamping => named(&["clp"], &|_, v| v),
+        Candidate::VortexLag => {
+            named(&["share_of_egk_moment", "per_rad_sideslip", "per_unit_p_hat"], &|_, v| v);
+        }
+        Candidate::Coupling => named(
+            &[
+                "egk_x_differential_cmu",
+                "egk_x_total_cmu",
+                "egk_x_plant_moment",
+                "phi_x_differential_cmu",
+                "phi_x_total_cmu",
+                "phi_x_plant_moment",
+                "p_hat_x_differential_cmu",
+                "p_hat_x_total_cmu",
+                "p_hat_x_plant_moment",
+            ],
+            &|_, v| v,
+        ),
+        Candidate::BalanceResonance => named(&["gain_load", "gain_inertial"], &|_, v| v),
+        Candidate::Recalibration => named(&["disturbance_gain", "plant_gain"], &|_, v| 1.0 + v),
+        Candidate::GravityTare => {
+            // m g d sin(phi + p) = m g d cos p sin(phi) + m g d sin p cos(phi).
+            let (b0, b1) = (b(0, 0), b(1, 0));
+            let moment_nm = context.moment_scale_nm * b0.hypot(b1);
+            out.insert("weight_moment_nm".into(), moment_nm);
+            out.insert("mass_offset_kgm".into(), moment_nm / G_MPS2);
+            out.insert("phase_deg".into(), b1.atan2(b0).to_degrees());
         }
         Candidate::BiasDrift => {
-            let n_runs = beta.len() / 2;
-            let drift_end: Vec<f64> = (0..n_runs).map(|run| b(2 * run) + b(2 * run + 1)).collect();
-            let worst = drift_end.iter().copied().fold(0.0, |acc: f64, v| if v.abs() > acc.abs() { v } else { acc });
+            // The fitted drift at the end of each run (it starts from the run's tare at zero).
+            let worst = columns
+                .iter()
+                .filter_map(|cols| {
+                    let last = cols.first()?.len().checked_sub(1)?;
+                    Some(cols.iter().zip(beta).map(|(col, b)| b * col[last]).sum::<f64>())
+                })
+                .fold(0.0, |acc: f64, v| if v.abs() > acc.abs() { v } else { acc });
             out.insert("largest_drift_over_run".into(), worst);
         }
-        Candidate::Recalibration => {
-            out.insert("disturbance_gain".into(), 1.0 + b(0));
-            out.insert("plant_gain".into(), 1.0 + b(1));
-        }
     }
-    out.into_iter().map(|(k, v)| (k, serde_json::json!(finite(v)))).collect()
+    out.into_iter().map(|(k, v)| (k, serde_json::json!(finite_or_null(v)))).collect()
 }
 
 /// Largest canonical correlation between the spans of two column sets over the training

@@ -34,6 +34,8 @@ pub struct SensorFinding {
     pub delta_bic: f64,
     /// Held-out gap before and after, Cp.
     pub heldout: regression::HeldoutGap,
+    /// Gap on the selection part before and after, Cp (the decisions rest on it).
+    pub selection: regression::HeldoutGap,
     /// One line of evidence for the report.
     pub evidence: String,
 }
@@ -89,6 +91,7 @@ fn segments_of(runs: &[RunStreams], tap: usize) -> Vec<Segment<'_>> {
         .map(|run| Segment {
             residual: &run.innovation[tap],
             training: run.training.clone(),
+            select: run.select,
             heldout: run.heldout.clone(),
         })
         .collect()
@@ -170,6 +173,7 @@ fn lag_finding(
     let noise_var = regression::difference_noise_var(segments, None);
     let autocorrelation = regression::integrated_autocorrelation(segments, 50);
     let heldout = regression::heldout_gap(segments, columns, &fit.beta, &fit.touched);
+    let selection = regression::selection_gap(segments, columns, &fit.beta, &fit.touched);
     let channels = tap.map_or_else(|| "all".to_owned(), channel_name);
     SensorFinding {
         effect: Effect::PressureLag,
@@ -184,6 +188,7 @@ fn lag_finding(
         noise_var,
         delta_bic: delta_bic(fit, autocorrelation, k),
         heldout,
+        selection,
         evidence: format!(
             "innovation of {channels} follows a first-order lag of the expected pressure, tau = {:.1} ms",
             1e3 * tau_s
@@ -237,7 +242,8 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
             explained: f64::INFINITY,
             noise_var,
             delta_bic: f64::INFINITY,
-            heldout: regression::HeldoutGap { mse_before: 0.0, mse_after: 0.0, noise_var: 0.0, n: 0, floor_var: 0.0 },
+            heldout: regression::HeldoutGap::EMPTY,
+            selection: regression::HeldoutGap::EMPTY,
             evidence: format!(
                 "{name} is missing in {:.1} % of the samples (the others in {:.1} %)",
                 100.0 * missing_fraction,
@@ -263,6 +269,7 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
             .collect();
         let fit = regression::fit_through_origin(&segments, &columns)?;
         let heldout = regression::heldout_gap(&segments, &columns, &[1.0], &fit.touched);
+        let selection = regression::selection_gap(&segments, &columns, &[1.0], &fit.touched);
         return Some(SensorFinding {
             effect: Effect::PressureFault,
             params: vec![
@@ -276,6 +283,7 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
             noise_var,
             delta_bic: f64::INFINITY,
             heldout,
+            selection,
             evidence: format!("{name} repeats one reading for {stuck_len_s:.2} s from t = {stuck_start_s:.2} s"),
         });
     }
@@ -311,6 +319,7 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
         let count: usize = spike_columns.iter().map(|cols| cols[0].iter().filter(|v| **v != 0.0).count()).sum();
         let duration_s: f64 = runs.iter().map(|run| run.len() as f64 / run.sample_hz).sum();
         let heldout = regression::heldout_gap(&segments, &spike_columns, &[1.0], &fit.touched);
+        let selection = regression::selection_gap(&segments, &spike_columns, &[1.0], &fit.touched);
         // A spike count the Gaussian tail explains is not a fault.
         let expected = gaussian_tail(SPIKE_SIGMA) * runs.iter().map(RunStreams::len).sum::<usize>() as f64;
         let delta = if (count as f64) > 3.0 * expected + 3.0 { delta_bic(&fit, tau, 1) } else { 0.0 };
@@ -326,6 +335,7 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
             noise_var,
             delta_bic: delta,
             heldout,
+            selection,
             evidence: format!(
                 "{name} has {count} innovations beyond {SPIKE_SIGMA} robust sigma (Gaussian tail: {expected:.1})"
             ),
@@ -333,6 +343,7 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
     }
     let fit = bias?;
     let heldout = regression::heldout_gap(&segments, &columns, &fit.beta, &fit.touched);
+    let selection = regression::selection_gap(&segments, &columns, &fit.beta, &fit.touched);
     Some(SensorFinding {
         effect: Effect::PressureFault,
         params: vec![
@@ -346,6 +357,7 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
         noise_var,
         delta_bic: delta_bic(&fit, tau, 2),
         heldout,
+        selection,
         evidence: format!("{name}'s innovation mean steps by {:.4} at t = {onset_s:.2} s", fit.beta[0]),
     })
 }
@@ -415,7 +427,7 @@ fn bias_step(runs: &[RunStreams], tap: usize) -> (f64, Vec<Vec<Vec<f64>>>) {
         let onset = duration_s * f64::from(step) / 40.0;
         let (mut sum, mut count) = (0.0, 0usize);
         for run in runs {
-            for idx in run.training.clone() {
+            for idx in run.fit_samples() {
                 let v = run.innovation[tap][idx];
                 if run.t_s[idx] >= onset && v.is_finite() {
                     sum += v;

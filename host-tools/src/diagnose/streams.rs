@@ -16,6 +16,7 @@ use estimator_core::plant::Plant;
 use estimator_core::{CoefficientSet, Estimator, Input};
 use firmware_sim::dataset::{Dataset, Run, RunKind};
 
+use super::regression::Interleave;
 use crate::fit::pressure::{PressureFilterF64, PressureModelF64};
 use crate::fit::signals::{differentiate, hold_missing, zero_phase_lowpass};
 use crate::fit::split::Split;
@@ -41,9 +42,12 @@ pub struct RunStreams {
     pub alpha_deg: f64,
     /// Sample rate, Hz.
     pub sample_hz: f64,
-    /// Training samples.
+    /// Training samples: candidates are fitted here, less the selection blocks.
     pub training: Range<usize>,
-    /// Held-out samples.
+    /// Selection samples, interleaved blocks of the training part: which effect is named, and
+    /// whether there is a gap at all, is decided here.
+    pub select: Interleave,
+    /// Held-out samples: the named effects' shrink is reported here and nothing is chosen.
     pub heldout: Range<usize>,
     /// Time from the start of the run, s.
     pub t_s: Vec<f64>,
@@ -112,6 +116,11 @@ impl RunStreams {
         matches!(self.kind, RunKind::Actuation | RunKind::RollActuation | RunKind::Static)
     }
 
+    /// The training samples less the selection blocks: where candidates are fitted.
+    pub fn fit_samples(&self) -> impl Iterator<Item = usize> + '_ {
+        self.training.clone().filter(|&idx| !self.select.contains(idx))
+    }
+
     /// Re-runs the sim's plants on other Cmu sequences (one per jet), as the core steps them.
     #[must_use]
     pub fn plant_response(&self, set: &CoefficientSet, cmu: &[Vec<f64>; 2]) -> Vec<f64> {
@@ -129,8 +138,9 @@ impl RunStreams {
     }
 }
 
-/// Builds the streams of every run. With `heldout_only`, the held-out part of every run is also its training part (the model's
-/// own signature on data it was not fitted on, [`super::Signature`]).
+/// Builds the streams of every run. With `heldout_only`, the held-out part of every run is its
+/// training part, with its own selection blocks (the model's own signature on data it was not
+/// fitted on, [`super::Signature`]).
 #[must_use]
 pub fn build(dataset: &Dataset, set: &CoefficientSet, split: &Split, heldout_only: bool) -> Vec<RunStreams> {
     use rayon::prelude::*;
@@ -141,6 +151,7 @@ pub fn build(dataset: &Dataset, set: &CoefficientSet, split: &Split, heldout_onl
             let mut streams = build_run(run, set, split);
             if heldout_only {
                 streams.training = streams.heldout.clone();
+                streams.select = Interleave::over(streams.training.clone(), streams.sample_hz);
             }
             streams
         })
@@ -207,6 +218,7 @@ fn build_run(run: &Run, set: &CoefficientSet, split: &Split) -> RunStreams {
         alpha_deg: run.meta.alpha_deg,
         sample_hz,
         training: split.training(n),
+        select: Interleave::over(split.training(n), sample_hz),
         heldout: split.heldout(n),
         t_s,
         phi_rad,
