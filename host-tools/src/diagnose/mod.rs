@@ -18,6 +18,7 @@
 
 pub mod attribution;
 pub mod candidates;
+pub mod faults;
 pub mod gap_ledger;
 pub mod ledger;
 pub mod pressure_lag;

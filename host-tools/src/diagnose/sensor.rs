@@ -5,6 +5,7 @@
 
 use firmware_sim::effect::Effect;
 
+use super::faults;
 use super::regression::{self, Segment};
 use super::streams::RunStreams;
 
@@ -14,6 +15,12 @@ const STUCK_MIN_S: f64 = 0.05;
 
 /// Innovation beyond this many robust standard deviations is a spike.
 const SPIKE_SIGMA: f64 = 6.0;
+
+/// How many times the typical channel's lag evidence a channel's must be to stand out as lagged.
+const STAND_OUT: f64 = 4.0;
+
+/// Longest burst of consecutive spiking samples that still counts as spikes.
+const SPIKE_MAX_BURST: usize = 5;
 
 /// A sensor finding with its strength.
 #[derive(Debug, Clone, PartialEq)]
@@ -72,11 +79,10 @@ pub fn findings(runs: &[RunStreams], reference_tau_s: f64) -> Vec<SensorFinding>
 }
 
 impl SensorFinding {
-    /// Its key in the sim's signature: the name and the channel, or `aligned` for a lag of
-    /// several channels.
+    /// Its key in the sim's signature: the name and its channels (`pressure_lag:cp03+cp07`).
     #[must_use]
     pub fn floor_key(&self) -> String {
-        format!("{}:{}", self.effect, self.channel.as_deref().unwrap_or("aligned"))
+        format!("{}:{}", self.effect, self.channels.join("+"))
     }
 }
 
@@ -113,10 +119,11 @@ fn lag_column(run: &RunStreams, tap: usize, tau_s: f64) -> Vec<f64> {
     lagged.iter().zip(&held).map(|(l, e)| l - e).collect()
 }
 
-/// The single-channel lag on the innovations: the channel and time constant that explain most.
-/// With the other eleven channels unlagged, the filter's modes follow them and the lagged
-/// channel's innovation shows its lag; a lag common to many channels is the alignment's
-/// ([`super::pressure_lag`]), which the innovations cannot see.
+/// The lag of some channels on the innovations: each channel's time constant profiled; the
+/// channels whose lag stands out from the typical channel's are named together. With the other
+/// channels unlagged, the filter's modes follow them and a lagged channel's innovation shows its
+/// lag; a lag common to most channels is the alignment's ([`super::pressure_lag`]), which the
+/// innovations cannot see.
 fn lag_findings(runs: &[RunStreams], n_taps: usize) -> Vec<SensorFinding> {
     let Some(sample_hz) = runs.first().map(|run| run.sample_hz) else {
         return Vec::new();
@@ -136,62 +143,92 @@ fn lag_findings(runs: &[RunStreams], n_taps: usize) -> Vec<SensorFinding> {
                 .collect()
         })
         .collect();
-    let mut out = Vec::new();
-    // One channel: the channel and time constant that explain most.
-    let mut best_one: Option<(usize, usize, f64)> = None;
-    for (tau_idx, fits) in per_tau.iter().enumerate() {
-        for (tap, fit) in fits.iter().enumerate() {
-            if let Some(fit) = fit {
-                let gain = fit.ssr_base - fit.ssr;
-                if best_one.is_none_or(|(_, _, g)| gain > g) {
-                    best_one = Some((tap, tau_idx, gain));
-                }
-            }
-        }
+    // Per channel, its best time constant and what it explains in noise variances.
+    let best: Vec<Option<(usize, f64)>> = (0..n_taps)
+        .map(|tap| {
+            let noise_var = regression::difference_noise_var(&segments_of(runs, tap), None).max(f64::MIN_POSITIVE);
+            per_tau
+                .iter()
+                .enumerate()
+                // A lag, not a lead: the reading follows the expectation late (positive gain).
+                .filter_map(|(tau_idx, fits)| {
+                    fits[tap]
+                        .as_ref()
+                        .filter(|fit| fit.beta.first().is_some_and(|gain| *gain > 0.0))
+                        .map(|fit| (tau_idx, fit.explained_per_sample() / noise_var))
+                })
+                .max_by(|a, b| a.1.total_cmp(&b.1))
+        })
+        .collect();
+    // The channels that stand out: a lag of some channels leaves the others' innovations
+    // alone, while a common-mode change of every pressure (q fluctuation, a model error) shows
+    // in all of them alike and is no lag of these channels.
+    let mut strengths: Vec<f64> = best.iter().map(|b| b.map_or(0.0, |(_, v)| v)).collect();
+    strengths.sort_by(f64::total_cmp);
+    let typical = strengths[strengths.len() / 2];
+    let min_ratio = super::MIN_EFFECT_TO_NOISE * super::MIN_EFFECT_TO_NOISE;
+    let lagged: Vec<(usize, usize)> = best
+        .iter()
+        .enumerate()
+        .filter_map(|(tap, b)| b.filter(|(_, v)| *v >= min_ratio && *v >= STAND_OUT * typical).map(|(t, _)| (tap, t)))
+        .collect();
+    if lagged.is_empty() {
+        return Vec::new();
     }
-    if let Some((tap, tau_idx, _)) = best_one {
-        let segments = segments_of(runs, tap);
-        let columns: Vec<Vec<Vec<f64>>> = runs.iter().map(|run| vec![lag_column(run, tap, grid[tau_idx])]).collect();
-        if let Some(fit) = regression::fit_through_origin(&segments, &columns) {
-            // One channel out of twelve chosen: the choice costs ln 12 more.
-            let mut finding = lag_finding(&segments, &columns, &fit, grid[tau_idx], Some(tap), 2);
-            finding.delta_bic -= (n_taps as f64).ln();
-            out.push(finding);
-        }
+    // One column per lagged channel at its own time constant, pooled.
+    let (mut segments, mut columns) = (Vec::new(), Vec::new());
+    for (slot, &(tap, tau_idx)) in lagged.iter().enumerate() {
+        segments.extend(segments_of(runs, tap));
+        columns.extend(runs.iter().map(|run| {
+            let own = lag_column(run, tap, grid[tau_idx]);
+            (0..lagged.len()).map(|s| if s == slot { own.clone() } else { vec![0.0; own.len()] }).collect::<Vec<_>>()
+        }));
     }
-    out
+    let Some(fit) = regression::fit_through_origin(&segments, &columns) else { return Vec::new() };
+    let taus: Vec<(usize, f64)> = lagged.iter().map(|&(tap, tau_idx)| (tap, grid[tau_idx])).collect();
+    let mut finding = lag_finding(&segments, &columns, &fit, &taus, 2 * lagged.len());
+    // The choice of the channels costs ln C(n, k).
+    finding.delta_bic -= (1..=lagged.len()).map(|i| ((n_taps - lagged.len() + i) as f64 / i as f64).ln()).sum::<f64>();
+    vec![finding]
 }
 
 fn lag_finding(
     segments: &[Segment<'_>],
     columns: &[Vec<Vec<f64>>],
     fit: &regression::Fit,
-    tau_s: f64,
-    tap: Option<usize>,
+    taus: &[(usize, f64)],
     k: usize,
 ) -> SensorFinding {
     let noise_var = regression::difference_noise_var(segments, None);
     let autocorrelation = regression::integrated_autocorrelation(segments, 50);
     let heldout = regression::heldout_gap(segments, columns, &fit.beta, &fit.touched);
     let selection = regression::selection_gap(segments, columns, &fit.beta, &fit.touched);
-    let channels = tap.map_or_else(|| "all".to_owned(), channel_name);
+    let names: Vec<String> = taus.iter().map(|(tap, _)| channel_name(*tap)).collect();
+    let mut params = vec![
+        ("tau_s".into(), ParamValue::Number(taus.iter().map(|(_, t)| t).sum::<f64>() / taus.len().max(1) as f64)),
+        ("channels".into(), ParamValue::Text(names.join(","))),
+    ];
+    for ((tap, tau_s), gain) in taus.iter().zip(&fit.beta) {
+        params.push((format!("tau_s_{}", channel_name(*tap)), ParamValue::Number(*tau_s)));
+        params.push((format!("gain_{}", channel_name(*tap)), ParamValue::Number(*gain)));
+    }
     SensorFinding {
         effect: Effect::PressureLag,
-        params: vec![
-            ("tau_s".into(), ParamValue::Number(tau_s)),
-            ("gain".into(), ParamValue::Number(fit.beta[0])),
-            ("channels".into(), ParamValue::Text(channels.clone())),
-        ],
-        channel: tap.map(channel_name),
-        channels: tap.map(channel_name).into_iter().collect(),
+        params,
+        channel: (names.len() == 1).then(|| names[0].clone()),
+        channels: names.clone(),
         explained: fit.explained_per_sample(),
         noise_var,
         delta_bic: delta_bic(fit, autocorrelation, k),
         heldout,
         selection,
         evidence: format!(
-            "innovation of {channels} follows a first-order lag of the expected pressure, tau = {:.1} ms",
-            1e3 * tau_s
+            "the innovation of {} follows a first-order lag of the expected pressure ({})",
+            names.join(", "),
+            taus.iter()
+                .map(|(tap, t)| format!("{}: {:.1} ms", channel_name(*tap), 1e3 * t))
+                .collect::<Vec<_>>()
+                .join(", ")
         ),
     }
 }
@@ -251,79 +288,60 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
             ),
         });
     }
-    // Stuck: identical raw readings over a long stretch.
-    let (stuck_len_s, stuck_start_s) = longest_constant_run(runs, tap);
-    if stuck_len_s >= STUCK_MIN_S {
-        let columns: Vec<Vec<Vec<f64>>> = runs
-            .iter()
-            .map(|run| {
-                // After the onset the reading carries no information: explain the innovation there.
-                let onset = run.t_s.iter().position(|t| *t >= stuck_start_s).unwrap_or(run.len());
-                vec![
-                    (0..run.len())
-                        .map(|idx| if idx >= onset { run.innovation[tap][idx].clamp(-1e3, 1e3) } else { 0.0 })
-                        .map(|v| if v.is_finite() { v } else { 0.0 })
-                        .collect(),
-                ]
-            })
-            .collect();
-        let fit = regression::fit_through_origin(&segments, &columns)?;
-        let heldout = regression::heldout_gap(&segments, &columns, &[1.0], &fit.touched);
-        let selection = regression::selection_gap(&segments, &columns, &[1.0], &fit.touched);
-        return Some(SensorFinding {
+    let tau = regression::integrated_autocorrelation(&segments, 50);
+    let onset_s = |onsets: &faults::Onsets| -> f64 {
+        runs.iter()
+            .zip(&onsets.per_run)
+            .filter_map(|(run, onset)| onset.map(|k| run.t_s.get(k).copied().unwrap_or(0.0)))
+            .fold(f64::INFINITY, f64::min)
+    };
+    let runs_with = |onsets: &faults::Onsets| onsets.per_run.iter().filter(|o| o.is_some()).count();
+    let mut shapes: Vec<SensorFinding> = Vec::new();
+    // Stuck (or flat): from its onset in each run the reading stops following the pressure.
+    let stuck = faults::scan(runs, tap, faults::Shape::Stuck, tau);
+    if runs_with(&stuck) > 0
+        && let Some(fit) = regression::fit_through_origin(&segments, &stuck.columns)
+        && faults::stuck_slope_holds(&fit)
+    {
+        let (repeat_s, repeat_start_s) = longest_constant_run(runs, tap);
+        let start_s = onset_s(&stuck);
+        let k = fit.beta.len() + runs_with(&stuck);
+        shapes.push(SensorFinding {
             effect: Effect::PressureFault,
             params: vec![
                 ("mode".into(), ParamValue::Text("stuck".into())),
-                ("start_s".into(), ParamValue::Number(stuck_start_s)),
-                ("constant_for_s".into(), ParamValue::Number(stuck_len_s)),
+                ("start_s".into(), ParamValue::Number(start_s)),
+                ("runs".into(), ParamValue::Number(runs_with(&stuck) as f64)),
             ],
             channel: Some(name.clone()),
             channels: vec![name.clone()],
             explained: fit.explained_per_sample(),
             noise_var,
-            delta_bic: f64::INFINITY,
-            heldout,
-            selection,
-            evidence: format!("{name} repeats one reading for {stuck_len_s:.2} s from t = {stuck_start_s:.2} s"),
+            delta_bic: delta_bic(&fit, tau, k),
+            heldout: regression::heldout_gap(&segments, &stuck.columns, &fit.beta, &fit.touched),
+            selection: regression::selection_gap(&segments, &stuck.columns, &fit.beta, &fit.touched),
+            evidence: if repeat_s >= STUCK_MIN_S {
+                format!("{name} repeats one reading for {repeat_s:.2} s from t = {repeat_start_s:.2} s")
+            } else {
+                format!(
+                    "{name} stops following the pressure from t = {start_s:.2} s in {} run(s) (a constant with noise)",
+                    runs_with(&stuck)
+                )
+            },
         });
     }
-    // Spikes: isolated innovations far beyond the channel's robust spread.
+    // Spikes: isolated innovations, or bursts of a few samples, far beyond the channel's robust
+    // spread.
     let robust_sigma = robust_sigma(&segments);
-    let spike_columns: Vec<Vec<Vec<f64>>> = runs
-        .iter()
-        .map(|run| {
-            let nu = &run.innovation[tap];
-            let big = |idx: usize| nu[idx].is_finite() && nu[idx].abs() > SPIKE_SIGMA * robust_sigma;
-            let quiet =
-                |idx: Option<usize>| idx.is_none_or(|i| !(nu[i].is_finite() && nu[i].abs() > 3.0 * robust_sigma));
-            // A spike is isolated: its neighbours are ordinary (a burst is a lag or a step).
-            vec![
-                (0..nu.len())
-                    .map(|idx| {
-                        let next = (idx + 1 < nu.len()).then_some(idx + 1);
-                        if big(idx) && quiet(idx.checked_sub(1)) && quiet(next) { nu[idx] } else { 0.0 }
-                    })
-                    .collect(),
-            ]
-        })
-        .collect();
-    let spike = regression::fit_through_origin(&segments, &spike_columns);
-    // Bias: a step in the innovation's mean at the most likely onset.
-    let (onset_s, columns) = bias_step(runs, tap);
-    let bias = regression::fit_through_origin(&segments, &columns);
-    let spike_explained = spike.as_ref().map_or(0.0, regression::Fit::explained_per_sample);
-    let bias_explained = bias.as_ref().map_or(0.0, regression::Fit::explained_per_sample);
-    let tau = regression::integrated_autocorrelation(&segments, 50);
-    if spike_explained > bias_explained {
-        let fit = spike?;
+    let spike_columns: Vec<Vec<Vec<f64>>> =
+        runs.iter().map(|run| vec![spike_column(&run.innovation[tap], robust_sigma)]).collect();
+    if let Some(fit) = regression::fit_through_origin(&segments, &spike_columns) {
         let count: usize = spike_columns.iter().map(|cols| cols[0].iter().filter(|v| **v != 0.0).count()).sum();
         let duration_s: f64 = runs.iter().map(|run| run.len() as f64 / run.sample_hz).sum();
-        let heldout = regression::heldout_gap(&segments, &spike_columns, &[1.0], &fit.touched);
-        let selection = regression::selection_gap(&segments, &spike_columns, &[1.0], &fit.touched);
         // A spike count the Gaussian tail explains is not a fault.
         let expected = gaussian_tail(SPIKE_SIGMA) * runs.iter().map(RunStreams::len).sum::<usize>() as f64;
         let delta = if (count as f64) > 3.0 * expected + 3.0 { delta_bic(&fit, tau, 1) } else { 0.0 };
-        return Some(SensorFinding {
+        shapes.push(SensorFinding {
             effect: Effect::PressureFault,
             params: vec![
                 ("mode".into(), ParamValue::Text("spike".into())),
@@ -334,32 +352,67 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
             explained: if delta > 0.0 { fit.explained_per_sample() } else { 0.0 },
             noise_var,
             delta_bic: delta,
-            heldout,
-            selection,
+            heldout: regression::heldout_gap(&segments, &spike_columns, &[1.0], &fit.touched),
+            selection: regression::selection_gap(&segments, &spike_columns, &[1.0], &fit.touched),
             evidence: format!(
                 "{name} has {count} innovations beyond {SPIKE_SIGMA} robust sigma (Gaussian tail: {expected:.1})"
             ),
         });
     }
-    let fit = bias?;
-    let heldout = regression::heldout_gap(&segments, &columns, &fit.beta, &fit.touched);
-    let selection = regression::selection_gap(&segments, &columns, &fit.beta, &fit.touched);
-    Some(SensorFinding {
-        effect: Effect::PressureFault,
-        params: vec![
-            ("mode".into(), ParamValue::Text("bias".into())),
-            ("value".into(), ParamValue::Number(fit.beta[0])),
-            ("start_s".into(), ParamValue::Number(onset_s)),
-        ],
-        channel: Some(name.clone()),
-        channels: vec![name.clone()],
-        explained: fit.explained_per_sample(),
-        noise_var,
-        delta_bic: delta_bic(&fit, tau, 2),
-        heldout,
-        selection,
-        evidence: format!("{name}'s innovation mean steps by {:.4} at t = {onset_s:.2} s", fit.beta[0]),
-    })
+    // Bias: the innovation's mean steps at each run's own onset (or from its start), by one value.
+    let bias = faults::scan(runs, tap, faults::Shape::Bias, tau);
+    if runs_with(&bias) > 0
+        && let Some(fit) = regression::fit_through_origin(&segments, &bias.columns)
+    {
+        let start_s = onset_s(&bias);
+        shapes.push(SensorFinding {
+            effect: Effect::PressureFault,
+            params: vec![
+                ("mode".into(), ParamValue::Text("bias".into())),
+                ("value".into(), ParamValue::Number(fit.beta[0])),
+                ("start_s".into(), ParamValue::Number(start_s)),
+                ("runs".into(), ParamValue::Number(runs_with(&bias) as f64)),
+            ],
+            channel: Some(name.clone()),
+            channels: vec![name.clone()],
+            explained: fit.explained_per_sample(),
+            noise_var,
+            delta_bic: delta_bic(&fit, tau, 1 + runs_with(&bias)),
+            heldout: regression::heldout_gap(&segments, &bias.columns, &fit.beta, &fit.touched),
+            selection: regression::selection_gap(&segments, &bias.columns, &fit.beta, &fit.touched),
+            evidence: format!(
+                "{name}'s innovation mean steps by {:.4} from t = {start_s:.2} s in {} run(s)",
+                fit.beta[0],
+                runs_with(&bias)
+            ),
+        });
+    }
+    shapes.into_iter().max_by(|a, b| a.delta_bic.total_cmp(&b.delta_bic))
+}
+
+/// The spikes of one innovation series: isolated samples, or bursts of up to
+/// [`SPIKE_MAX_BURST`] samples, beyond [`SPIKE_SIGMA`] robust standard deviations, with ordinary
+/// samples on both sides (a longer excursion is a lag or a step, not a spike); zero elsewhere.
+fn spike_column(nu: &[f64], robust_sigma: f64) -> Vec<f64> {
+    let big = |idx: usize| nu[idx].is_finite() && nu[idx].abs() > SPIKE_SIGMA * robust_sigma;
+    let quiet = |idx: Option<usize>| idx.is_none_or(|i| !(nu[i].is_finite() && nu[i].abs() > 3.0 * robust_sigma));
+    let mut out = vec![0.0; nu.len()];
+    let mut idx = 0;
+    while idx < nu.len() {
+        if !big(idx) {
+            idx += 1;
+            continue;
+        }
+        let start = idx;
+        while idx < nu.len() && big(idx) {
+            idx += 1;
+        }
+        let next = (idx < nu.len()).then_some(idx);
+        if idx - start <= SPIKE_MAX_BURST && quiet(start.checked_sub(1)) && quiet(next) {
+            out[start..idx].copy_from_slice(&nu[start..idx]);
+        }
+    }
+    out
 }
 
 /// Upper tail probability of `|N(0, 1)| > z`.
@@ -416,33 +469,4 @@ fn longest_constant_run(runs: &[RunStreams], tap: usize) -> (f64, f64) {
         }
     }
     (best_s, start_s)
-}
-
-/// The bias step: the onset (common to every run, from its start) where a step in the mean of
-/// the training innovations explains most (a CUSUM scan on a coarse grid), and its column.
-fn bias_step(runs: &[RunStreams], tap: usize) -> (f64, Vec<Vec<Vec<f64>>>) {
-    let duration_s = runs.iter().map(|run| run.t_s.last().copied().unwrap_or(0.0)).fold(0.0, f64::max);
-    let mut best = (0.0, f64::NEG_INFINITY);
-    for step in 0..40 {
-        let onset = duration_s * f64::from(step) / 40.0;
-        let (mut sum, mut count) = (0.0, 0usize);
-        for run in runs {
-            for idx in run.fit_samples() {
-                let v = run.innovation[tap][idx];
-                if run.t_s[idx] >= onset && v.is_finite() {
-                    sum += v;
-                    count += 1;
-                }
-            }
-        }
-        // Explained sum of squares of a mean over the samples after the onset.
-        let explained = if count == 0 { 0.0 } else { sum * sum / count as f64 };
-        if explained > best.1 {
-            best = (onset, explained);
-        }
-    }
-    let onset = best.0;
-    let columns =
-        runs.iter().map(|run| vec![run.t_s.iter().map(|t| if *t >= onset { 1.0 } else { 0.0 }).collect()]).collect();
-    (onset, columns)
 }
