@@ -310,11 +310,8 @@ fn diagnose(args: DiagnoseArgs) -> anyhow::Result<()> {
         eprintln!("note: no diagnosis signature of this sim; the built-in model's (default campaign) sets the floor");
     }
     let signature = Some(own_signature.unwrap_or_else(host_tools::diagnose::default_signature));
-    let config = DiagnoseConfig {
-        split: host_tools::fit::split::Split::with_holdout(args.holdout_fraction),
-        signature,
-        heldout_only: false,
-    };
+    let config =
+        DiagnoseConfig { split: host_tools::fit::split::Split::with_holdout(args.holdout_fraction), signature };
     let spinner = spinner("diagnosing".into());
     let (diagnosis, evidence) =
         diagnose(&dataset, model.as_ref().map(|(set, name)| (set, name.clone())), &config, &|stage| {

@@ -274,7 +274,9 @@ pub fn physical_params(
         Candidate::InertialTare => named(&["ixx_kgm2"], &|_, v| -v * context.moment_scale_nm),
         Candidate::RollDamping => named(&["clp"], &|_, v| v),
         Candidate::VortexLag => {
-            named(&["share_of_egk_moment", "per_rad_sideslip", "per_unit_p_hat"], &|_, v| v);
+            let drive = profiled.hyper.iter().find(|(name, _)| *name == "drive").map_or(0.0, |(_, v)| *v);
+            let per_drive = if drive > 0.5 { "per_unit_p_hat" } else { "per_rad_sideslip" };
+            named(&["share_of_egk_moment", per_drive], &|_, v| v);
         }
         Candidate::Coupling => named(
             &[

@@ -138,24 +138,11 @@ impl RunStreams {
     }
 }
 
-/// Builds the streams of every run. With `heldout_only`, the held-out part of every run is its
-/// training part, with its own selection blocks (the model's own signature on data it was not
-/// fitted on, [`super::Signature`]).
+/// Builds the streams of every run.
 #[must_use]
-pub fn build(dataset: &Dataset, set: &CoefficientSet, split: &Split, heldout_only: bool) -> Vec<RunStreams> {
+pub fn build(dataset: &Dataset, set: &CoefficientSet, split: &Split) -> Vec<RunStreams> {
     use rayon::prelude::*;
-    dataset
-        .runs
-        .par_iter()
-        .map(|run| {
-            let mut streams = build_run(run, set, split);
-            if heldout_only {
-                streams.training = streams.heldout.clone();
-                streams.select = Interleave::over(streams.training.clone(), streams.sample_hz);
-            }
-            streams
-        })
-        .collect()
+    dataset.runs.par_iter().map(|run| build_run(run, set, split)).collect()
 }
 
 fn build_run(run: &Run, set: &CoefficientSet, split: &Split) -> RunStreams {
