@@ -55,19 +55,8 @@ struct Group {
 }
 
 /// The nuisance columns besides the taps: the sim's plant moment (the jets move the balance
-/// and the taps in their own way), and what the balance may read that the surface pressures do
-/// not carry: the roll acceleration (an inertial tare), the roll rate and the weight moment's
-/// sine. Without them, de-lagged taps (a derivative added) stood in for an inertial tare.
-const N_NUISANCE: usize = 4;
-
-fn nuisance(run: &RunStreams) -> [Vec<f64>; N_NUISANCE] {
-    [
-        run.cl_afc(),
-        run.phi_ddot_rad_s2.clone(),
-        run.phi_dot_rad_s.clone(),
-        run.phi_rad.iter().map(|phi| phi.sin()).collect(),
-    ]
-}
+/// and the taps in their own way).
+const N_NUISANCE: usize = 1;
 
 impl Alignment {
     /// Accumulates the Gram matrices over the samples `part(run)` of every run, per angle of
@@ -93,7 +82,7 @@ impl Alignment {
         let width = 2 * taps.len() + N_NUISANCE;
         let mut by_alpha: BTreeMap<i64, Group> = BTreeMap::new();
         for run in runs {
-            let extra = nuisance(run);
+            let afc = run.cl_afc();
             let rows: Vec<usize> = part(run)
                 .into_iter()
                 .filter(|&idx| {
@@ -110,7 +99,7 @@ impl Alignment {
                 } else if col < 2 * taps.len() {
                     run.cp_dot[taps[col - taps.len()]][idx]
                 } else {
-                    extra[col - 2 * taps.len()][idx]
+                    afc[idx]
                 }
             };
             let count = rows.len() as f64;
@@ -216,12 +205,11 @@ impl Alignment {
                     return Vec::new();
                 };
                 let (weights, _) = self.solve(group, tau_s);
-                let extra = nuisance(run);
+                let afc = run.cl_afc();
                 let raw: Vec<f64> = part(run)
                     .into_iter()
                     .map(|idx| {
-                        let mut predicted: f64 =
-                            extra.iter().enumerate().map(|(k, column)| weights[n_taps + k] * column[idx]).sum();
+                        let mut predicted = weights[n_taps] * afc[idx];
                         for (col, &tap) in self.taps.iter().enumerate() {
                             predicted += weights[col] * (run.cp[tap][idx] + tau_s[col] * run.cp_dot[tap][idx]);
                         }
