@@ -92,16 +92,7 @@ pub fn strength(finding: &SensorFinding) -> f64 {
     if finding.noise_var > 0.0 { finding.explained / finding.noise_var } else { 0.0 }
 }
 
-fn segments_of(runs: &[RunStreams], tap: usize) -> Vec<Segment<'_>> {
-    runs.iter()
-        .map(|run| Segment {
-            residual: &run.innovation[tap],
-            training: run.training.clone(),
-            select: run.select,
-            heldout: run.heldout.clone(),
-        })
-        .collect()
-}
+use faults::segments_of;
 
 /// Time constants of the lag candidate, s: a log grid from two samples to half a second.
 fn lag_grid(sample_hz: f64) -> Vec<f64> {
