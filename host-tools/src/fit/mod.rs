@@ -10,6 +10,7 @@ pub mod heldout;
 pub mod pipeline;
 pub mod plant;
 pub mod pressure;
+pub mod prior;
 pub mod signals;
 pub mod sparse_fit;
 pub mod split;
