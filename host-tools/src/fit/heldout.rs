@@ -139,6 +139,12 @@ pub fn noise_rms(dataset: &Dataset, runs: &[usize], split: &Split) -> Option<f64
         let range = split.heldout(cl.len());
         differences.extend(cl[range].windows(2).map(|pair| pair[1] - pair[0]).filter(|d| d.is_finite()));
     }
+    white_noise_rms(differences)
+}
+
+/// Robust white-noise RMS of a signal from its first differences (at least 10 of them).
+#[must_use]
+pub fn white_noise_rms(mut differences: Vec<f64>) -> Option<f64> {
     if differences.len() < 10 {
         return None;
     }

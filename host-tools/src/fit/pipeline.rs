@@ -20,6 +20,7 @@ use super::fusion::{FusionData, FusionFit, fit_fusion};
 use super::heldout::{HeldoutReport, evaluate_heldout};
 use super::plant::{PlantConfig, PlantRun, fit_plant, mirrored};
 use super::pressure::{PressureFitConfig, PressureFitReport, PressureRun, fit_pressure_model, run_pressure_filter};
+use super::prior::{EgkPrior, Geometry};
 use super::signals::RunSignals;
 use super::sparse_fit::SparseFit;
 use super::split::Split;
@@ -204,7 +205,7 @@ pub fn rate_filter(dt_s: f64, rate_corner_hz: f64, accel_corner_hz: f64) -> Rate
 /// so that the runs with the largest errors (high alpha, buffeting) do not choose the filter
 /// for all the others alone.
 fn choose_rate_filter(dataset: &Dataset, roll: &[usize], split: &Split, dt_s: f64) -> RateFilter {
-    let half_span_time_s = (dataset.wing.span_m / (2.0 * dataset.tunnel.u_inf_mps)) as f32;
+    let geometry = Geometry::new(&dataset.wing, &dataset.tunnel);
     let candidates: Vec<RateFilter> = RATE_CORNERS_HZ
         .iter()
         .flat_map(|&rate| ACCEL_CORNERS_HZ.iter().map(move |&accel| (rate, accel)))
@@ -218,8 +219,7 @@ fn choose_rate_filter(dataset: &Dataset, roll: &[usize], split: &Split, dt_s: f6
                 let run = &dataset.runs[idx];
                 let signals = RunSignals::new(run, filter, dt_s);
                 let data = [EgkData { signals: &signals, range: split.training(signals.len()) }];
-                let mut prior = params_at(&PRIOR, run.meta.alpha_deg as f32);
-                prior.half_span_time_s = half_span_time_s;
+                let prior = EgkPrior::new(&geometry, run.meta.alpha_deg);
                 sum_log_mse += linear_map_rms(run.meta.alpha_deg, dt_s, &prior, &data).powi(2).ln();
             }
             sum_log_mse
@@ -266,7 +266,7 @@ fn fit_egk(
         let list = alphas.iter().map(|a| format!("{a}")).collect::<Vec<_>>().join(", ");
         return Err(FitError::TooManyAlphas { found: alphas.len(), alphas: list, max: N_ALPHA });
     }
-    let half_span_time_s = (dataset.wing.span_m / (2.0 * dataset.tunnel.u_inf_mps)) as f32;
+    let geometry = Geometry::new(&dataset.wing, &dataset.tunnel);
     let dt_s = f64::from(set.dt_s);
     let fits: Vec<EgkFit> = alphas
         .par_iter()
@@ -276,9 +276,7 @@ fn fit_egk(
                 .filter(|&&idx| (dataset.runs[idx].meta.alpha_deg - alpha_deg).abs() < 1e-6)
                 .map(|&idx| EgkData { signals: &signals[idx], range: config.split.training(signals[idx].len()) })
                 .collect();
-            let mut prior = params_at(&PRIOR, alpha_deg as f32);
-            prior.half_span_time_s = half_span_time_s;
-            fit_at(alpha_deg, dt_s, &prior, &data)
+            fit_at(alpha_deg, dt_s, &EgkPrior::new(&geometry, alpha_deg), &data)
         })
         .collect();
     set.n_alpha = fits.len() as u8;
