@@ -30,7 +30,7 @@
 //!
 //! Every coefficient lives in a [`CoefficientSet`] ([`coeffs`]): fitted on the host, compiled in
 //! as const tables or loaded from a checked postcard blob ([`blob`]). [`prior::PRIOR`] is the
-//! physical prior before any fit.
+//! physical prior before any fit, at the paper's geometry.
 //!
 //! # Rules
 //!

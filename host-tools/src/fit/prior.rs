@@ -344,6 +344,33 @@ mod tests {
         assert_eq!(slower.breakdown_deg, prior.breakdown_deg);
     }
 
+    /// The core's `PRIOR` is this prior at the paper's geometry, to its printed digits.
+    #[test]
+    fn the_core_prior_is_this_prior_on_the_paper_wing() {
+        let set = estimator_core::prior::PRIOR;
+        for (slot, alpha_deg) in [0.0, 10.0, 20.0].into_iter().enumerate() {
+            let core = set.egk[slot];
+            let host = EgkPrior::new(&paper(), alpha_deg).to_core();
+            let pairs = [
+                (core.tau1_s, host.tau1_s),
+                (core.tau2_s, host.tau2_s),
+                (core.breakdown_deg, host.breakdown_deg),
+                (core.steepness_per_deg, host.steepness_per_deg),
+                (core.sideslip_gain, host.sideslip_gain),
+                (core.clbeta_per_rad, host.clbeta_per_rad),
+                (core.clp, host.clp),
+                (core.clpdot, host.clpdot),
+                (core.vortex_gain, host.vortex_gain),
+                (core.bias, host.bias),
+                (core.half_span_time_s, host.half_span_time_s),
+            ];
+            for (index, (core, host)) in pairs.into_iter().enumerate() {
+                assert!((core - host).abs() <= 2e-5 * host.abs(), "alpha {alpha_deg}, field {index}: {core} vs {host}");
+            }
+            assert_eq!(f64::from(set.alpha_schedule_deg[slot]), alpha_deg);
+        }
+    }
+
     /// The physical estimates on the paper's wing, against the numbers their doc comments
     /// quote, and the symmetry at alpha = 0.
     #[test]
