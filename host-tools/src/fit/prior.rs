@@ -11,8 +11,8 @@
 //! estimate, as each value says.
 //!
 //! Sections refer to the project's research notes (`shared/research/domain-models.md`), whose
-//! provenance tags are kept: [PUB] checked against a primary source, [SEC] a secondary one,
-//! [REC] recalled, [INF] inferred. Time constants are in convective times `c/U` of the
+//! provenance tags are kept: \[PUB\] checked against a primary source, \[SEC\] a secondary one,
+//! \[REC\] recalled, \[INF\] inferred. Time constants are in convective times `c/U` of the
 //! dataset's own root chord and speed (the manifest's `wing.chord_m` and `tunnel.u_inf_mps`),
 //! the unit the GK literature quotes them in (section 2.3).
 //!
@@ -33,10 +33,10 @@ pub const N_EGK_PARAMS: usize = 10;
 /// - ln tau2: 1.5 (a factor of 4.5), wider than the half-range of [`TAU2_RANGE_CONVECTIVE`]
 ///   because the only delta-wing value lies at its lower end;
 /// - a*: 5 deg, twice the half-width of the trailing-edge crossings (section 7) to cover the
-///   mapping from crossing to mid-chord ([`breakdown_deg`]);
+///   mapping from crossing to mid-chord (the private `breakdown_deg` below);
 /// - ln k: 1 (a factor of 2.7), between an airfoil's stall and a delta wing's slower
 ///   breakdown travel ([`STEEPNESS_PER_DEG`]);
-/// - kb: 0.5, the notes' whole range 0.7 to 1.5 (section 9.1 [INF]) around the estimate;
+/// - kb: 0.5, the notes' whole range 0.7 to 1.5 (section 9.1 \[INF\]) around the estimate;
 /// - C_l,beta and C_l,p: 0.2 per rad, larger than the estimates themselves;
 /// - C_l,pdot: 0.05, two thirds of the slender-wing value;
 /// - K_v: 0.05, the notes' whole range 0.01 to 0.05 (sections 7 and 9.1);
@@ -46,7 +46,7 @@ pub const EGK_PRIOR_WIDTH: [f64; N_EGK_PARAMS] =
 
 /// GK's relaxation times of a delta wing's vortex breakdown, in `c/U`: about 1.5 from
 /// water-tunnel visualisation and 15 from wind-tunnel forced oscillation, a tenfold gap the
-/// authors could not explain (section 2.3 [SEC]; Goman & Khrabrov, J. Aircraft 31(5), 1994).
+/// authors could not explain (section 2.3 \[SEC\]; Goman & Khrabrov, J. Aircraft 31(5), 1994).
 /// The prior centres on the geometric middle, 4.7 `c/U`, near Ayancik & Mulleners' 4.24
 /// (JFM 2022, section 2.3), rather than on the notes' 3 `c/U` that the tunnel took.
 pub const TAU1_RANGE_CONVECTIVE: [f64; 2] = [1.5, 15.0];
@@ -58,17 +58,17 @@ pub const TAU1_RANGE_CONVECTIVE: [f64; 2] = [1.5, 15.0];
 pub const TAU2_RANGE_CONVECTIVE: [f64; 2] = [0.5, 5.0];
 
 /// Incidences at which the breakdown of a 65 deg delta wing's vortex reaches the trailing
-/// edge at this Reynolds number, deg (section 7 [REC]; Nelson & Pelletier, Prog. Aerosp.
+/// edge at this Reynolds number, deg (section 7 \[REC\]; Nelson & Pelletier, Prog. Aerosp.
 /// Sci. 39, 2003).
 pub const TRAILING_EDGE_CROSSING_DEG: [f64; 2] = [20.0, 25.0];
 
 /// Steepness of the breakdown curve, per deg: the 20 per rad of Jategaonkar's GK example
-/// (Flight Vehicle System Identification, 2nd ed., HystTau2.m; section 2.2 [PUB]), the one
+/// (Flight Vehicle System Identification, 2nd ed., HystTau2.m; section 2.2 \[PUB\]), the one
 /// published value of the tanh form, where the tunnel has 0.25 per deg (14 per rad).
 pub const STEEPNESS_PER_DEG: f64 = 20.0 * std::f64::consts::PI / 180.0;
 
 /// Vortex-breakdown asymmetry increment of a 65 deg delta wing at alpha = 20 deg: 0.01 to
-/// 0.03 (section 7 [REC]; Nelson & Pelletier 2003). The tunnel takes the top, 0.03.
+/// 0.03 (section 7 \[REC\]; Nelson & Pelletier 2003). The tunnel takes the top, 0.03.
 pub const VORTEX_INCREMENT_AT_20_DEG: [f64; 2] = [0.01, 0.03];
 
 /// The dataset's geometry and speed the prior scales with.
@@ -205,34 +205,34 @@ fn geometric_middle([low, high]: [f64; 2]) -> f64 {
 /// chord (1: beyond the trailing edge; section 2.1), so its midpoint is the incidence at which
 /// the breakdown stands at mid-chord, above the trailing-edge crossing: taking the crossing
 /// (the geometric middle of [`TRAILING_EDGE_CROSSING_DEG`], 22.4 deg) where the curve is at
-/// 0.9 puts the midpoint `atanh(0.8) / k` = 3.1 deg higher, at 25.5 deg [INF].
+/// 0.9 puts the midpoint `atanh(0.8) / k` = 3.1 deg higher, at 25.5 deg \[INF\].
 fn breakdown_deg() -> f64 {
     geometric_middle(TRAILING_EDGE_CROSSING_DEG) + 0.8f64.atanh() / STEEPNESS_PER_DEG
 }
 
-/// The sideslip-to-incidence gain `kb` [INF]: the leading edges of a delta wing in sideslip
+/// The sideslip-to-incidence gain `kb` \[INF\]: the leading edges of a delta wing in sideslip
 /// beta are swept by `Lambda -+ beta`, and the vortex scales with the incidence normal to the
 /// edge, `atan(tan a / cos Lambda)`. The incidence that gives the windward edge's normal
 /// incidence at the nominal sweep is `a + kb beta` with `kb = sin(2a) tan(Lambda) / 2`, and a
 /// delta wing's sweep is `tan Lambda = 2c/b`: 0.39 at 10 deg and 0.74 at 20 deg on the paper's
-/// wing, below the notes' 1 (section 9.1 [INF], the tunnel's value).
+/// wing, below the notes' 1 (section 9.1 \[INF\], the tunnel's value).
 fn sideslip_gain(geometry: &Geometry, alpha_deg: f64) -> f64 {
     let tan_sweep = 2.0 * geometry.chord_m / geometry.span_m;
     0.5 * (2.0 * alpha_deg.to_radians()).sin() * tan_sweep
 }
 
-/// The sideslip derivative [INF]: in slender-wing theory (Jones, NACA Report 835, 1946) the
+/// The sideslip derivative \[INF\]: in slender-wing theory (Jones, NACA Report 835, 1946) the
 /// load of a flat delta wing acts at the middle of its widest cross-section, which sideslip
 /// shifts off the body axis by `c tan^2(eps) beta` (`tan eps = b / 2c`, the half apex angle);
 /// the moment is then `C_l,beta = -C_L tan(eps) / 2 = -C_L b / 4c`, with the lift of
 /// [`Geometry::lift_coefficient`]: -0.11 at 10 deg and -0.23 at 20 deg on the paper's wing,
-/// where the notes (section 7 [INF], the tunnel's `-0.0075 alpha_deg`) have -0.075 and -0.15.
+/// where the notes (section 7 \[INF\], the tunnel's `-0.0075 alpha_deg`) have -0.075 and -0.15.
 /// It is zero at alpha = 0, where a flat wing has no lift.
 fn clbeta_per_rad(geometry: &Geometry, alpha_deg: f64) -> f64 {
     -geometry.lift_coefficient(alpha_deg) * geometry.span_m / (4.0 * geometry.chord_m)
 }
 
-/// Roll damping [INF]: slender-wing theory's `-pi A / 32` (section 7 [REC]; Ribner, NACA
+/// Roll damping \[INF\]: slender-wing theory's `-pi A / 32` (section 7 \[REC\]; Ribner, NACA
 /// TN 1423, 1947) is the limit of small aspect ratio, and it equals the tunnel's -0.17 at the
 /// paper's A. Damping is lift from the antisymmetric upwash; at finite A the prior scales it
 /// by Helmbold's lift slope over slender theory's `pi A / 2`, which gives `-K_p / 16`: -0.147
@@ -241,11 +241,11 @@ fn clp(geometry: &Geometry) -> f64 {
     -geometry.potential_lift_slope() / 16.0
 }
 
-/// Roll-acceleration derivative [INF]: the added moment of inertia of the air, in the same
+/// Roll-acceleration derivative \[INF\]: the added moment of inertia of the air, in the same
 /// slender-wing theory. A flat section of half-span `s` rolling in still air carries
 /// `pi rho s^4 / 8` per unit length (Newman, Marine Hydrodynamics, 1977, section 4.13);
 /// integrated over a delta wing and made dimensionless with `p_hat_dot = p_dot (b/2U)^2` it is
-/// `-pi b c / (80 S)`: -0.078 on the paper's wing, where the notes (section 9.1 [INF], the
+/// `-pi b c / (80 S)`: -0.078 on the paper's wing, where the notes (section 9.1 \[INF\], the
 /// tunnel) have -0.01.
 fn clpdot(geometry: &Geometry) -> f64 {
     -std::f64::consts::PI * geometry.span_m * geometry.chord_m / (80.0 * geometry.area_m2)
