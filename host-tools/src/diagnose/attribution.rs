@@ -6,21 +6,18 @@
 
 use rayon::prelude::*;
 
-use super::candidates::{self, Candidate, Context};
+use super::candidates::{self, Candidate, Context, Form};
 use super::regression::{self, Fit, HeldoutGap, Segment};
 use super::sensor::delta_bic;
 use super::streams::RunStreams;
-
-/// One grid point of a candidate: its named parameters and discrete choices.
-pub type Hyper = Vec<(&'static str, f64)>;
 
 /// A candidate profiled over its grid.
 #[derive(Debug, Clone)]
 pub struct Profiled {
     /// The candidate.
     pub candidate: Candidate,
-    /// Best grid point.
-    pub hyper: Vec<(&'static str, f64)>,
+    /// The form with the most evidence.
+    pub form: Form,
     /// The fit at that point.
     pub fit: Fit,
     /// Complexity-penalised evidence against no effect.
@@ -49,15 +46,10 @@ impl Profiled {
     }
 }
 
-/// Columns of a candidate at a grid point, for every run.
+/// Columns of a candidate in one form, for every run.
 #[must_use]
-pub fn all_columns(
-    candidate: Candidate,
-    hyper: &[(&'static str, f64)],
-    runs: &[RunStreams],
-    context: &Context<'_>,
-) -> Vec<Vec<Vec<f64>>> {
-    runs.iter().enumerate().map(|(idx, run)| candidates::columns(candidate, hyper, run, idx, context)).collect()
+pub fn all_columns(candidate: Candidate, form: &Form, runs: &[RunStreams], context: &Context<'_>) -> Vec<Vec<Vec<f64>>> {
+    runs.iter().enumerate().map(|(idx, run)| candidates::columns(candidate, form, run, idx, context)).collect()
 }
 
 /// Profiles `candidate` on the residuals `residuals[run]`.
@@ -71,26 +63,26 @@ pub fn profile(
 ) -> Option<Profiled> {
     let segments = segments(runs, residuals);
     let sample_hz = runs.first()?.sample_hz;
-    let grid = candidate.grid(sample_hz, context);
+    let forms = candidates::forms(candidate, sample_hz, context);
     // Each form of the family with its evidence: the best form is the one with the most evidence
     // (its columns and profiled parameters penalised), so a richer form wins only by its fit.
-    let fits: Vec<(Hyper, Fit, f64)> = grid
+    let fits: Vec<(Form, Fit, f64)> = forms
         .par_iter()
-        .filter_map(|hyper| {
-            let columns = all_columns(candidate, hyper, runs, context);
+        .filter_map(|form| {
+            let columns = all_columns(candidate, form, runs, context);
             regression::fit_through_origin(&segments, &columns).map(|fit| {
-                let k = fit.beta.len() + Candidate::n_profiled(hyper);
+                let k = fit.beta.len() + form.n_profiled();
                 let evidence = delta_bic(&fit, autocorrelation_time, k);
-                (hyper.clone(), fit, evidence)
+                (*form, fit, evidence)
             })
         })
         .collect();
-    let profile = fits.iter().map(|(hyper, fit, _)| (hyper.first().map_or(0.0, |(_, v)| *v), fit.ssr)).collect();
-    let (hyper, fit, delta_bic) = fits.into_iter().max_by(|a, b| a.2.total_cmp(&b.2))?;
-    let columns = all_columns(candidate, &hyper, runs, context);
+    let profile = fits.iter().map(|(form, fit, _)| (form.coordinate().map_or(0.0, |(_, v)| v), fit.ssr)).collect();
+    let (form, fit, delta_bic) = fits.into_iter().max_by(|a, b| a.2.total_cmp(&b.2))?;
+    let columns = all_columns(candidate, &form, runs, context);
     let selection = regression::selection_gap(&segments, &columns, &fit.beta, &fit.touched);
     let heldout = regression::heldout_gap(&segments, &columns, &fit.beta, &fit.touched);
-    Some(Profiled { candidate, hyper, fit, delta_bic, profile, selection, heldout })
+    Some(Profiled { candidate, form, fit, delta_bic, profile, selection, heldout })
 }
 
 /// The segments of the residual stream.
@@ -115,7 +107,7 @@ pub fn subtract(
     residuals: &[Vec<f64>],
     context: &Context<'_>,
 ) -> Vec<Vec<f64>> {
-    let columns = all_columns(profiled.candidate, &profiled.hyper, runs, context);
+    let columns = all_columns(profiled.candidate, &profiled.form, runs, context);
     residuals
         .iter()
         .zip(&columns)

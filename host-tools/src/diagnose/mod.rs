@@ -37,7 +37,7 @@ use firmware_sim::dataset::Dataset;
 use crate::fit::pipeline::{FitConfig, fit_dataset};
 use crate::fit::split::Split;
 use attribution::Profiled;
-use candidates::{Candidate, Context};
+use candidates::Context;
 use result::{Confounding, Diagnosis, EffectResult, Gap, Unexplained, Verdict, Where, finite_or_null};
 use sensor::{ParamValue, SensorFinding};
 
@@ -477,7 +477,7 @@ impl BalanceAttribution {
         let mut round = first_round.clone();
         let this = Self { first_round: Vec::new(), named: Vec::new(), remainder: Vec::new() };
         while named.len() < 3 {
-            let Some(best) = round.iter().find(|p| !named.iter().any(|n| n.candidate == p.candidate)).cloned() else {
+            let Some(best) = round.iter().find(|p| !named.iter().any(|n| n.candidate.name() == p.candidate.name())).cloned() else {
                 break;
             };
             if !this.qualifies(&best, streams, floor) {
@@ -722,7 +722,7 @@ fn profile_all(
     context: &Context<'_>,
     autocorrelation_time: f64,
 ) -> Vec<Profiled> {
-    let mut all: Vec<Profiled> = Candidate::ALL
+    let mut all: Vec<Profiled> = candidates::ALL
         .iter()
         .filter_map(|&candidate| attribution::profile(candidate, runs, residuals, context, autocorrelation_time))
         .collect();
@@ -732,7 +732,7 @@ fn profile_all(
     // Candidates the evidence cannot tell apart from the leader (within MIN_DELTA_BIC): the one
     // with the fewest parameters leads (the pair is reported as confounded).
     if let Some(best) = all.first().map(|p| p.delta_bic) {
-        let k = |p: &Profiled| p.fit.beta.len() + Candidate::n_profiled(&p.hyper);
+        let k = |p: &Profiled| p.fit.beta.len() + p.form.n_profiled();
         if let Some((idx, _)) = all
             .iter()
             .enumerate()
@@ -761,7 +761,7 @@ fn balance_effect(
     floor: &Signature,
 ) -> EffectResult {
     let segments = attribution::segments(runs, residuals);
-    let columns = attribution::all_columns(profiled.candidate, &profiled.hyper, runs, context);
+    let columns = attribution::all_columns(profiled.candidate, &profiled.form, runs, context);
     let mut gap = regression::heldout_gap(&segments, &columns, &profiled.fit.beta, &profiled.fit.touched);
     // The sim's own floor over the touched runs' held-out samples, by kind of run.
     let (mut floor_sum, mut count) = (0.0, 0usize);
@@ -775,7 +775,7 @@ fn balance_effect(
     EffectResult {
         name: profiled.candidate.name().into(),
         block: profiled.candidate.block().name().into(),
-        params: result::physical_params(profiled, context, &columns),
+        params: candidates::physical_params(profiled.candidate, &profiled.form, &profiled.fit.beta, context, &columns),
         heldout_rms_before: gap.gap_before(),
         heldout_rms_after: gap.gap_after(),
         shrink: gap.shrink(),
@@ -861,8 +861,8 @@ fn confounding(
             if (a.delta_bic - b.delta_bic).abs() >= MIN_DELTA_BIC {
                 continue;
             }
-            let cols_a = attribution::all_columns(a.candidate, &a.hyper, runs, context);
-            let cols_b = attribution::all_columns(b.candidate, &b.hyper, runs, context);
+            let cols_a = attribution::all_columns(a.candidate, &a.form, runs, context);
+            let cols_b = attribution::all_columns(b.candidate, &b.form, runs, context);
             let correlation = result::canonical_correlation(&segments, &cols_a, &cols_b);
             if correlation > CONFOUNDED_CORRELATION {
                 out.push(Confounding {

@@ -286,7 +286,7 @@ fn plots_section(evidence: &Evidence) -> Section {
             svg: plot::svg(
                 &Axes {
                     title: format!("Profile, {name}"),
-                    x_label: profiled.hyper.first().map_or("parameter", |(k, _)| k).into(),
+                    x_label: profiled.form.coordinate().map_or("parameter", |(k, _)| k).into(),
                     y_label: "SSR".into(),
                     log_y: false,
                 },

@@ -1,5 +1,5 @@
 //! The machine-readable result, `diagnosis.json` (shared/spec/diagnosis.md, "Machine-readable
-//! result"), and the conversion of fitted regressor coefficients into physical parameters.
+//! result"), and the canonical correlation that tells which candidates this data cannot separate.
 
 use std::collections::BTreeMap;
 
@@ -7,12 +7,8 @@ use nalgebra::DMatrix;
 use serde::Serialize;
 
 use super::attribution::Profiled;
-use super::candidates::{Candidate, Context};
 use super::regression::Segment;
 use super::sensor::{ParamValue, SensorFinding};
-
-/// Standard gravity, m/s^2.
-const G_MPS2: f64 = 9.806_65;
 
 /// The verdict.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -200,11 +196,7 @@ impl CandidateSummary {
         move |profiled| Self {
             name: profiled.candidate.name().into(),
             block: profiled.candidate.block().name().into(),
-            hyper: profiled
-                .hyper
-                .iter()
-                .map(|(k, v)| ((*k).to_owned(), serde_json::json!(finite_or_null(*v))))
-                .collect(),
+            hyper: profiled.form.entries().into_iter().map(|(k, v)| (k.to_owned(), v.to_json())).collect(),
             explained_to_noise: finite_or_null(profiled.explained() / noise_var.max(f64::MIN_POSITIVE)),
             selected_to_noise: finite_or_null(profiled.selected() / noise_var.max(f64::MIN_POSITIVE)),
             delta_bic: finite_or_null(profiled.delta_bic),
@@ -242,79 +234,6 @@ impl CandidateSummary {
 #[must_use]
 pub fn finite_or_null(value: f64) -> Option<f64> {
     value.is_finite().then_some(value)
-}
-
-/// The fitted regressor coefficients of a balance effect as physical parameters; with one gain
-/// per angle of attack, every gain is reported per alpha (`clp@20`). `columns` are the
-/// candidate's columns at its grid point (for the drift's size at the end of each run).
-#[must_use]
-pub fn physical_params(
-    profiled: &Profiled,
-    context: &Context<'_>,
-    columns: &[Vec<Vec<f64>>],
-) -> BTreeMap<String, serde_json::Value> {
-    let beta = &profiled.fit.beta;
-    let per_alpha = profiled.hyper.iter().any(|(name, value)| *name == "per_alpha" && *value > 0.5);
-    let groups: Vec<String> =
-        if per_alpha { context.alphas_deg.iter().map(|a| format!("@{a}")).collect() } else { vec![String::new()] };
-    // Coefficient of base column `column` in group `group`.
-    let b = |column: usize, group: usize| beta.get(column * groups.len() + group).copied().unwrap_or(0.0);
-    let mut out: BTreeMap<String, f64> =
-        profiled.hyper.iter().filter(|(name, _)| *name != "per_alpha").map(|(k, v)| ((*k).to_owned(), *v)).collect();
-    let mut named = |names: &[&str], map: &dyn Fn(usize, f64) -> f64| {
-        for (group, suffix) in groups.iter().enumerate() {
-            for (column, name) in names.iter().enumerate() {
-                out.insert(format!("{name}{suffix}"), map(column, b(column, group)));
-            }
-        }
-    };
-    match profiled.candidate {
-        Candidate::ActuatorDelay | Candidate::ActuatorLag => named(&["gain"], &|_, v| v),
-        // Balance = aero - I phi_ddot: the column's coefficient is -I / (q S b).
-        Candidate::InertialTare => named(&["ixx_kgm2"], &|_, v| -v * context.moment_scale_nm),
-        Candidate::RollDamping => named(&["clp"], &|_, v| v),
-        Candidate::VortexLag => {
-            let drive = profiled.hyper.iter().find(|(name, _)| *name == "drive").map_or(0.0, |(_, v)| *v);
-            let per_drive = if drive > 0.5 { "per_unit_p_hat" } else { "per_rad_sideslip" };
-            named(&["share_of_egk_moment", per_drive], &|_, v| v);
-        }
-        Candidate::Coupling => named(
-            &[
-                "egk_x_differential_cmu",
-                "egk_x_total_cmu",
-                "egk_x_plant_moment",
-                "phi_x_differential_cmu",
-                "phi_x_total_cmu",
-                "phi_x_plant_moment",
-                "p_hat_x_differential_cmu",
-                "p_hat_x_total_cmu",
-                "p_hat_x_plant_moment",
-            ],
-            &|_, v| v,
-        ),
-        Candidate::BalanceResonance => named(&["gain_load", "gain_inertial"], &|_, v| v),
-        Candidate::Recalibration => named(&["disturbance_gain", "plant_gain"], &|_, v| 1.0 + v),
-        Candidate::GravityTare => {
-            // m g d sin(phi + p) = m g d cos p sin(phi) + m g d sin p cos(phi).
-            let (b0, b1) = (b(0, 0), b(1, 0));
-            let moment_nm = context.moment_scale_nm * b0.hypot(b1);
-            out.insert("weight_moment_nm".into(), moment_nm);
-            out.insert("mass_offset_kgm".into(), moment_nm / G_MPS2);
-            out.insert("phase_deg".into(), b1.atan2(b0).to_degrees());
-        }
-        Candidate::BiasDrift => {
-            // The fitted drift at the end of each run (it starts from the run's tare at zero).
-            let worst = columns
-                .iter()
-                .filter_map(|cols| {
-                    let last = cols.first()?.len().checked_sub(1)?;
-                    Some(cols.iter().zip(beta).map(|(col, b)| b * col[last]).sum::<f64>())
-                })
-                .fold(0.0, |acc: f64, v| if v.abs() > acc.abs() { v } else { acc });
-            out.insert("largest_drift_over_run".into(), worst);
-        }
-    }
-    out.into_iter().map(|(k, v)| (k, serde_json::json!(finite_or_null(v)))).collect()
 }
 
 /// Largest canonical correlation between the spans of two column sets over the training

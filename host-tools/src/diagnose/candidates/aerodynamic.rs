@@ -1,0 +1,180 @@
+//! What the disturbance model and the superposition lack (G0, G1, G2, G9): a rate damping, a
+//! second slower flow state, the disturbance-actuation interaction, and the recalibration of the
+//! existing blocks' gains that competes with every new effect (gap-diagnosis.md section 4.2).
+
+use firmware_sim::effect::Effect;
+
+use super::{BalanceCandidate, Context, Drive, Params, Shape, difference, first_order_lag, gains, log_grid};
+use crate::diagnose::streams::RunStreams;
+
+/// `roll_damping`: `C_l,p p_hat`, one gain or one per angle of attack.
+#[derive(Debug, Clone, Copy)]
+pub struct RollDamping;
+
+/// `vortex_lag`: a second, slower flow state, tau from 30 ms to 5 s (no shorter than
+/// [`Context::slow_tau_min_s`]).
+#[derive(Debug, Clone, Copy)]
+pub struct VortexLag;
+
+/// `coupling`: bilinear disturbance-actuation interaction terms, one set or one per angle of
+/// attack.
+#[derive(Debug, Clone, Copy)]
+pub struct Coupling;
+
+/// Recalibration of the existing blocks' gains (group G0): names no new effect.
+#[derive(Debug, Clone, Copy)]
+pub struct Recalibration;
+
+const AERODYNAMIC_SEPARATOR: &str = "forced roll at several reduced frequencies and a second free-stream speed (aerodynamic lags scale with c/U, rig lags do not)";
+
+impl BalanceCandidate for RollDamping {
+    fn effect(&self) -> Option<Effect> {
+        Some(Effect::RollDamping)
+    }
+
+    fn separating_experiment(&self) -> &'static str {
+        AERODYNAMIC_SEPARATOR
+    }
+
+    fn shapes(&self, _sample_hz: f64, _context: &Context<'_>) -> Vec<Shape> {
+        vec![Shape::Fixed]
+    }
+
+    fn schedulable(&self) -> bool {
+        true
+    }
+
+    fn columns(&self, _shape: &Shape, run: &RunStreams, _run_idx: usize, context: &Context<'_>) -> Vec<Vec<f64>> {
+        vec![context.p_hat(run)]
+    }
+
+    fn params(&self, _shape: &Shape, beta: &[f64], _context: &Context<'_>, _columns: &[Vec<Vec<f64>>]) -> Params {
+        gains(&["clp"], beta)
+    }
+}
+
+impl BalanceCandidate for VortexLag {
+    fn effect(&self) -> Option<Effect> {
+        Some(Effect::VortexLag)
+    }
+
+    fn separating_experiment(&self) -> &'static str {
+        AERODYNAMIC_SEPARATOR
+    }
+
+    /// No per-alpha gains: the sideslip drive already grows with alpha, and a slow state with
+    /// nine free gains absorbs the sim's own error from recording to recording.
+    fn shapes(&self, _sample_hz: f64, context: &Context<'_>) -> Vec<Shape> {
+        log_grid(0.03, 5.0, 30)
+            .into_iter()
+            .filter(|tau_s| *tau_s >= context.slow_tau_min_s)
+            .flat_map(|tau_s| {
+                [Drive::Sideslip, Drive::RollRate].map(|drive| Shape::SlowState { tau_s, drive })
+            })
+            .collect()
+    }
+
+    /// A second, slower flow state (gap-diagnosis.md sections 2.9 and 4.2, G9), in the forms a
+    /// rig can have: a share of the eGK's response through the slower state
+    /// (`LP_tau[C_l,eGK] - C_l,eGK`), and a new state driven by one of the disturbance's physical
+    /// inputs, `LP_tau[u]`.
+    fn columns(&self, shape: &Shape, run: &RunStreams, _run_idx: usize, context: &Context<'_>) -> Vec<Vec<f64>> {
+        let Shape::SlowState { tau_s, drive } = *shape else { return Vec::new() };
+        let dt_s = 1.0 / run.sample_hz;
+        let input: Vec<f64> = match drive {
+            Drive::RollRate => context.p_hat(run),
+            Drive::Sideslip => {
+                let alpha = run.alpha_deg.to_radians();
+                run.phi_rad.iter().map(|phi| (alpha.sin() * phi.sin()).asin()).collect()
+            }
+        };
+        vec![difference(&first_order_lag(&run.cl_egk, tau_s, dt_s), &run.cl_egk), first_order_lag(&input, tau_s, dt_s)]
+    }
+
+    fn params(&self, shape: &Shape, beta: &[f64], _context: &Context<'_>, _columns: &[Vec<Vec<f64>>]) -> Params {
+        let per_drive = match shape {
+            Shape::SlowState { drive: Drive::RollRate, .. } => "per_unit_p_hat",
+            _ => "per_rad_sideslip",
+        };
+        gains(&["share_of_egk_moment", per_drive], beta)
+    }
+}
+
+impl BalanceCandidate for Coupling {
+    fn effect(&self) -> Option<Effect> {
+        Some(Effect::Coupling)
+    }
+
+    fn separating_experiment(&self) -> &'static str {
+        "roll+actuation runs with the blowing scheduled independently of the roll phase, at two roll amplitudes"
+    }
+
+    fn shapes(&self, _sample_hz: f64, _context: &Context<'_>) -> Vec<Shape> {
+        vec![Shape::Fixed]
+    }
+
+    fn schedulable(&self) -> bool {
+        true
+    }
+
+    /// First-order interaction: the blowing (differential and total, scaled) and the jets' own
+    /// moment with their dynamics (the paper's C_l,Roll x C_l,AFC terms), times the
+    /// disturbance's own variables (its moment, the roll angle and the reduced roll rate:
+    /// blowing changes the wing's stiffness and its damping alike).
+    fn columns(&self, _shape: &Shape, run: &RunStreams, _run_idx: usize, context: &Context<'_>) -> Vec<Vec<f64>> {
+        let n = run.len();
+        let cmu_ref = context.cmu_ref.max(f64::MIN_POSITIVE);
+        let differential: Vec<f64> = (0..n).map(|idx| (run.cmu[0][idx] - run.cmu[1][idx]) / cmu_ref).collect();
+        let total: Vec<f64> = (0..n).map(|idx| (run.cmu[0][idx] + run.cmu[1][idx]) / cmu_ref).collect();
+        let p_hat = context.p_hat(run);
+        let afc = run.cl_afc();
+        let mut columns = Vec::with_capacity(9);
+        for variable in [&run.cl_egk, &run.phi_rad, &p_hat] {
+            columns.push((0..n).map(|idx| variable[idx] * differential[idx]).collect());
+            columns.push((0..n).map(|idx| variable[idx] * total[idx]).collect());
+            columns.push((0..n).map(|idx| if run.rolls() { variable[idx] * afc[idx] } else { 0.0 }).collect());
+        }
+        columns
+    }
+
+    fn params(&self, _shape: &Shape, beta: &[f64], _context: &Context<'_>, _columns: &[Vec<Vec<f64>>]) -> Params {
+        gains(
+            &[
+                "egk_x_differential_cmu",
+                "egk_x_total_cmu",
+                "egk_x_plant_moment",
+                "phi_x_differential_cmu",
+                "phi_x_total_cmu",
+                "phi_x_plant_moment",
+                "p_hat_x_differential_cmu",
+                "p_hat_x_total_cmu",
+                "p_hat_x_plant_moment",
+            ],
+            beta,
+        )
+    }
+}
+
+impl BalanceCandidate for Recalibration {
+    fn effect(&self) -> Option<Effect> {
+        None
+    }
+
+    fn separating_experiment(&self) -> &'static str {
+        "runs at new angles of attack and amplitudes inside the fitted range"
+    }
+
+    /// One gain per block: per-alpha gains on the eGK and the plant absorb the sim's own error in
+    /// every run and outbid the effect they partly span.
+    fn shapes(&self, _sample_hz: f64, _context: &Context<'_>) -> Vec<Shape> {
+        vec![Shape::Fixed]
+    }
+
+    fn columns(&self, _shape: &Shape, run: &RunStreams, _run_idx: usize, _context: &Context<'_>) -> Vec<Vec<f64>> {
+        vec![run.cl_egk.clone(), run.cl_afc()]
+    }
+
+    fn params(&self, _shape: &Shape, beta: &[f64], _context: &Context<'_>, _columns: &[Vec<Vec<f64>>]) -> Params {
+        gains(&["disturbance_gain", "plant_gain"], &beta.iter().map(|b| 1.0 + b).collect::<Vec<_>>())
+    }
+}

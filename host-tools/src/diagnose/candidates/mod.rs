@@ -1,0 +1,448 @@
+//! The candidate effects of the balance stream: each a physical addition to the sim with a few
+//! parameters, written as regressors of the balance residual (gap-diagnosis.md section 4.2,
+//! groups G0-G9), with a family of forms over its nonlinear parameters (delays, time constants,
+//! frequencies) and discrete choices, profiled by least squares.
+//!
+//! One type per candidate behind [`BalanceCandidate`]: its forms, its columns (over the whole
+//! run, so the held-out part sees the effect extended exactly as the fit left it) and its
+//! physical parameters. A form is typed ([`Form`], [`Shape`]), never a list of named numbers.
+//!
+//! The regressors are built from the recorded inputs and the sim's own blocks, never from the
+//! synthetic tunnel's code: the plant is re-run by estimator-core on a delayed or lagged Cmu, the
+//! vortex lag filters the eGK moment, the structural mode filters the sim's load.
+
+mod actuator;
+mod aerodynamic;
+mod structure;
+mod tare;
+
+use std::collections::BTreeMap;
+use std::fmt;
+
+use estimator_core::CoefficientSet;
+pub use firmware_sim::effect::Block;
+use firmware_sim::effect::Effect;
+
+pub use self::actuator::{ActuatorDelay, ActuatorLag, fractional_delay};
+pub use self::aerodynamic::{Coupling, Recalibration, RollDamping, VortexLag};
+pub use self::structure::{BalanceResonance, BiasDrift, DRIFT_KNOT_SPACING_S, RESONANCE_DAMPING, resonator};
+pub use self::tare::{GravityTare, InertialTare};
+use super::streams::RunStreams;
+pub use crate::fit::signals::first_order_lag;
+
+/// A candidate effect of the balance stream, one type per effect.
+pub trait BalanceCandidate: Sync + fmt::Debug {
+    /// The effect the candidate stands for; `None` for recalibration (G0), which names no new
+    /// effect.
+    fn effect(&self) -> Option<Effect>;
+
+    /// The experiment that separates this effect from its usual confusers
+    /// (gap-diagnosis.md section 2.11, "separator").
+    fn separating_experiment(&self) -> &'static str;
+
+    /// The shapes of the family (every nonlinear parameter on its grid, every discrete choice).
+    fn shapes(&self, sample_hz: f64, context: &Context<'_>) -> Vec<Shape>;
+
+    /// Whether the family also holds one gain per angle of attack (the aerodynamic effects, when
+    /// the recording has several).
+    fn schedulable(&self) -> bool {
+        false
+    }
+
+    /// The regression columns of `shape` for run number `run_idx`, one gain each; every column
+    /// has the run's length and is zero where the effect cannot act (e.g. no blowing).
+    fn columns(&self, shape: &Shape, run: &RunStreams, run_idx: usize, context: &Context<'_>) -> Vec<Vec<f64>>;
+
+    /// The fitted coefficients of the base columns (one group of a scheduled form) as physical
+    /// parameters. `columns` are the candidate's columns of every run at its form, `beta` their
+    /// coefficients.
+    fn params(&self, shape: &Shape, beta: &[f64], context: &Context<'_>, columns: &[Vec<Vec<f64>>]) -> Params;
+
+    /// The effect's name (the vocabulary of shared/spec/diagnosis.md; `recalibration` for G0).
+    fn name(&self) -> &'static str {
+        self.effect().map_or("recalibration", Effect::name)
+    }
+
+    /// The block the effect belongs to (recalibration: the disturbance model's gains).
+    fn block(&self) -> Block {
+        self.effect().map_or(Block::Disturbance, Effect::block)
+    }
+}
+
+/// A candidate (every one is a unit type, so a static reference).
+pub type Candidate = &'static dyn BalanceCandidate;
+
+/// Every balance candidate.
+pub const ALL: [Candidate; 10] = [
+    &ActuatorDelay,
+    &ActuatorLag,
+    &InertialTare,
+    &GravityTare,
+    &RollDamping,
+    &VortexLag,
+    &Coupling,
+    &BalanceResonance,
+    &BiasDrift,
+    &Recalibration,
+];
+
+/// Physical parameters of a fitted effect, by name.
+pub type Params = Vec<(String, f64)>;
+
+/// One form of a candidate's family: its shape and whether its gains are one per angle of
+/// attack.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Form {
+    /// Nonlinear parameters and discrete choices.
+    pub shape: Shape,
+    /// One gain per angle of attack instead of one for all.
+    pub per_alpha: bool,
+}
+
+/// The nonlinear parameters and discrete choices of a form.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Shape {
+    /// Nothing to profile: the columns are fixed.
+    Fixed,
+    /// A pure delay.
+    Delay {
+        /// Delay, s.
+        delay_s: f64,
+    },
+    /// A first-order lag.
+    Lag {
+        /// Time constant, s.
+        tau_s: f64,
+    },
+    /// A slower flow state with its drive.
+    SlowState {
+        /// Time constant, s.
+        tau_s: f64,
+        /// The physical input driving the new state.
+        drive: Drive,
+    },
+    /// A second-order structural mode.
+    Mode {
+        /// Natural frequency, Hz.
+        freq_hz: f64,
+        /// Damping ratio.
+        zeta: f64,
+    },
+    /// A smooth trend per run: powers of time up to `degree`.
+    Trend {
+        /// Highest power of time.
+        degree: u8,
+    },
+    /// A zero that wanders: piecewise linear in time per run.
+    Wander {
+        /// Spacing of the knots, s.
+        knot_spacing_s: f64,
+    },
+}
+
+/// What drives a second flow state (one at a time: the lags of the sideslip and of the rate
+/// together span the roll angle itself, a static moment, not a lag).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Drive {
+    /// The sideslip that rolling at incidence makes, `asin(sin alpha sin phi)`.
+    Sideslip,
+    /// The reduced roll rate `p b / (2 U)`.
+    RollRate,
+}
+
+impl Drive {
+    /// The drive's name in reports.
+    #[must_use]
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::Sideslip => "sideslip",
+            Self::RollRate => "roll_rate",
+        }
+    }
+}
+
+/// A form's parameter in a report: a number or a choice.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum FormValue {
+    /// A number (a profiled parameter, a degree, a spacing).
+    Number(f64),
+    /// A discrete choice.
+    Choice(&'static str),
+    /// A flag.
+    Flag(bool),
+}
+
+impl fmt::Display for FormValue {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Number(value) => write!(f, "{value:.4}"),
+            Self::Choice(choice) => f.write_str(choice),
+            Self::Flag(flag) => write!(f, "{flag}"),
+        }
+    }
+}
+
+impl FormValue {
+    /// As JSON (a non-finite number is `null`).
+    #[must_use]
+    pub fn to_json(self) -> serde_json::Value {
+        match self {
+            Self::Number(value) => serde_json::json!(value.is_finite().then_some(value)),
+            Self::Choice(choice) => serde_json::json!(choice),
+            Self::Flag(flag) => serde_json::json!(flag),
+        }
+    }
+}
+
+impl Form {
+    /// How many continuous parameters the form profiles on its grid (they count in the
+    /// complexity penalty; discrete choices count through their columns).
+    #[must_use]
+    pub const fn n_profiled(&self) -> usize {
+        match self.shape {
+            Shape::Fixed | Shape::Trend { .. } | Shape::Wander { .. } => 0,
+            Shape::Delay { .. } | Shape::Lag { .. } | Shape::SlowState { .. } => 1,
+            Shape::Mode { .. } => 2,
+        }
+    }
+
+    /// The first profiled parameter, for the report's profile plot.
+    #[must_use]
+    pub const fn coordinate(&self) -> Option<(&'static str, f64)> {
+        match self.shape {
+            Shape::Fixed => None,
+            Shape::Delay { delay_s } => Some(("delay_s", delay_s)),
+            Shape::Lag { tau_s } | Shape::SlowState { tau_s, .. } => Some(("tau_s", tau_s)),
+            Shape::Mode { freq_hz, .. } => Some(("freq_hz", freq_hz)),
+            Shape::Trend { degree } => Some(("degree", degree as f64)),
+            Shape::Wander { knot_spacing_s } => Some(("knot_spacing_s", knot_spacing_s)),
+        }
+    }
+
+    /// The form's parameters and choices by name, for the report and the JSON.
+    #[must_use]
+    pub fn entries(&self) -> Vec<(&'static str, FormValue)> {
+        let mut out = match self.shape {
+            Shape::Fixed => Vec::new(),
+            Shape::Delay { delay_s } => vec![("delay_s", FormValue::Number(delay_s))],
+            Shape::Lag { tau_s } => vec![("tau_s", FormValue::Number(tau_s))],
+            Shape::SlowState { tau_s, drive } => {
+                vec![("tau_s", FormValue::Number(tau_s)), ("drive", FormValue::Choice(drive.name()))]
+            }
+            Shape::Mode { freq_hz, zeta } => {
+                vec![("freq_hz", FormValue::Number(freq_hz)), ("zeta", FormValue::Number(zeta))]
+            }
+            Shape::Trend { degree } => vec![("degree", FormValue::Number(f64::from(degree)))],
+            Shape::Wander { knot_spacing_s } => vec![("knot_spacing_s", FormValue::Number(knot_spacing_s))],
+        };
+        if self.per_alpha {
+            out.push(("per_alpha", FormValue::Flag(true)));
+        }
+        out
+    }
+}
+
+/// Every form of `candidate`'s family: its shapes, each also with one gain per angle of attack
+/// where the family is scheduled and the recording has several angles. Within a family the form
+/// is chosen by its complexity-penalised evidence, not by its fit alone.
+#[must_use]
+pub fn forms(candidate: Candidate, sample_hz: f64, context: &Context<'_>) -> Vec<Form> {
+    let scheduled = candidate.schedulable() && context.alphas_deg.len() >= 2;
+    candidate
+        .shapes(sample_hz, context)
+        .into_iter()
+        .flat_map(|shape| {
+            let one = Form { shape, per_alpha: false };
+            let per_alpha = Form { shape, per_alpha: true };
+            if scheduled { vec![one, per_alpha] } else { vec![one] }
+        })
+        .collect()
+}
+
+/// The regression columns of `candidate` in `form` for run number `run_idx`; with one gain per
+/// angle of attack, each base column is repeated per alpha and zero at the other alphas.
+#[must_use]
+pub fn columns(
+    candidate: Candidate,
+    form: &Form,
+    run: &RunStreams,
+    run_idx: usize,
+    context: &Context<'_>,
+) -> Vec<Vec<f64>> {
+    let base = candidate.columns(&form.shape, run, run_idx, context);
+    if !form.per_alpha {
+        return base;
+    }
+    let n = run.len();
+    let group = context.alphas_deg.iter().position(|a| (a - run.alpha_deg).abs() < 1e-6);
+    let mut out = Vec::with_capacity(base.len() * context.alphas_deg.len());
+    for column in base {
+        for slot in 0..context.alphas_deg.len() {
+            out.push(if Some(slot) == group { column.clone() } else { vec![0.0; n] });
+        }
+    }
+    out
+}
+
+/// The fitted coefficients of `candidate` in `form` as physical parameters, with the form's
+/// own parameters; with one gain per angle of attack every gain is reported per alpha
+/// (`clp@20`). `columns` are the candidate's columns of every run at its form.
+#[must_use]
+pub fn physical_params(
+    candidate: Candidate,
+    form: &Form,
+    beta: &[f64],
+    context: &Context<'_>,
+    columns: &[Vec<Vec<f64>>],
+) -> BTreeMap<String, serde_json::Value> {
+    let mut out: BTreeMap<String, serde_json::Value> = form
+        .entries()
+        .into_iter()
+        .filter(|(name, _)| *name != "per_alpha")
+        .map(|(name, value)| (name.to_owned(), value.to_json()))
+        .collect();
+    let number = |value: f64| serde_json::json!(value.is_finite().then_some(value));
+    if form.per_alpha {
+        let groups = context.alphas_deg.len().max(1);
+        for (group, alpha) in context.alphas_deg.iter().enumerate() {
+            // Base column `c` of group `g` is column `c * groups + g`.
+            let group_beta: Vec<f64> = beta.iter().skip(group).step_by(groups).copied().collect();
+            for (name, value) in candidate.params(&form.shape, &group_beta, context, columns) {
+                out.insert(format!("{name}@{alpha}"), number(value));
+            }
+        }
+    } else {
+        for (name, value) in candidate.params(&form.shape, beta, context, columns) {
+            out.insert(name, number(value));
+        }
+    }
+    out
+}
+
+/// Names each coefficient in order (the gains of candidates whose columns are their parameters).
+fn gains(names: &[&str], beta: &[f64]) -> Params {
+    names.iter().zip(beta).map(|(name, value)| ((*name).to_owned(), *value)).collect()
+}
+
+/// `n` points spaced logarithmically from `low` to `high`.
+#[must_use]
+pub fn log_grid(low: f64, high: f64, n: usize) -> Vec<f64> {
+    if n < 2 {
+        return vec![low];
+    }
+    let ratio = (high / low).ln() / (n - 1) as f64;
+    (0..n).map(|idx| low * (ratio * idx as f64).exp()).collect()
+}
+
+/// What the regressors need besides the run itself.
+#[derive(Debug, Clone)]
+pub struct Context<'a> {
+    /// The sim's coefficient set (the plant is re-run on modified Cmu).
+    pub set: &'a CoefficientSet,
+    /// `q S b`, N m per unit C_l.
+    pub moment_scale_nm: f64,
+    /// `b / (2 U)`, s.
+    pub half_span_time_s: f64,
+    /// Largest recorded Cmu of the dataset (scales the coupling terms).
+    pub cmu_ref: f64,
+    /// Number of runs (per-run columns).
+    pub n_runs: usize,
+    /// Shortest time constant of the vortex-lag candidate, s: twice the sim's own eGK lag, so
+    /// that the candidate is a slower state, not the eGK's (or a rate damping) again.
+    pub slow_tau_min_s: f64,
+    /// Lowest natural frequency of the balance-resonance candidate, Hz ([`resonance_min_hz`]).
+    pub resonance_min_hz: f64,
+    /// The recording's angles of attack, deg, ascending (the groups of a per-alpha gain).
+    pub alphas_deg: Vec<f64>,
+    /// Duration of the longest run, s (the drift's knots).
+    pub longest_run_s: f64,
+}
+
+impl Context<'_> {
+    /// The reduced roll rate `p b / (2 U)` of a run.
+    fn p_hat(&self, run: &RunStreams) -> Vec<f64> {
+        run.phi_dot_rad_s.iter().map(|rate| rate * self.half_span_time_s).collect()
+    }
+}
+
+/// Lowest frequency the balance-resonance candidate may take, Hz: an octave above the motion's
+/// band, twice the frequency below which 99 % of the roll angle's variance lies (Welch PSD over
+/// the training parts of the rolling runs), and at least 2 Hz.
+///
+/// Why: below its natural frequency a mode driven by the load and the motion responds as their
+/// second derivatives scaled, so a "mode" inside or at the edge of the motion's band is an
+/// acceleration-like filter of the moment that can absorb an inertial tare or any structural
+/// error of the sim; it cannot be told from them. A balance built for dynamic tests has its
+/// first mode well above the motion it measures, or it would distort every reading the test is
+/// for. A mode that is really inside the band is left to the other candidates, or to
+/// `unattributed`.
+#[must_use]
+pub fn resonance_min_hz(runs: &[RunStreams]) -> f64 {
+    const FLOOR_HZ: f64 = 2.0;
+    // A missing sample counts as zero: a few of them barely move a spectrum.
+    let cleaned: Vec<Vec<f64>> = runs
+        .iter()
+        .filter(|run| run.rolls())
+        .map(|run| run.phi_rad[run.training.clone()].iter().map(|v| if v.is_finite() { *v } else { 0.0 }).collect())
+        .collect();
+    let segments: Vec<&[f64]> = cleaned.iter().map(Vec::as_slice).collect();
+    let Some(sample_hz) = runs.first().map(|run| run.sample_hz) else { return FLOOR_HZ };
+    let shortest = segments.iter().map(|segment| segment.len()).min().unwrap_or(0);
+    // Windows of about 4 s (0.25 Hz bins), shorter for short runs.
+    let window = ((4.0 * sample_hz) as usize).min(shortest / 2).max(4);
+    let Some(spectrum) = crate::diagnose::ledger::welch_psd(&segments, sample_hz, window) else { return FLOOR_HZ };
+    let total: f64 = spectrum.psd.iter().sum();
+    if total.is_nan() || total <= 0.0 {
+        return FLOOR_HZ;
+    }
+    let mut cumulative = 0.0;
+    for (freq_hz, power) in spectrum.freq_hz.iter().zip(&spectrum.psd) {
+        cumulative += power;
+        if cumulative >= 0.99 * total {
+            return (2.0 * freq_hz).max(FLOOR_HZ);
+        }
+    }
+    FLOOR_HZ
+}
+
+/// `a - b`, element by element.
+fn difference(a: &[f64], b: &[f64]) -> Vec<f64> {
+    a.iter().zip(b).map(|(x, y)| x - y).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lag_and_resonator_have_unit_dc_gain() {
+        let step = vec![1.0; 20_000];
+        let lagged = first_order_lag(&[vec![0.0], step.clone()].concat(), 0.05, 1e-3);
+        assert!((lagged.last().unwrap() - 1.0).abs() < 1e-9);
+        let rung = resonator(&[vec![0.0], step].concat(), 25.0, 0.05, 1e-3);
+        assert!((rung.last().unwrap() - 1.0).abs() < 1e-6);
+        let peak = rung.iter().copied().fold(0.0, f64::max);
+        assert!(peak > 1.7, "lightly damped step overshoots: {peak}");
+    }
+
+    #[test]
+    fn form_entries_name_every_parameter_and_count_the_profiled_ones() {
+        let form = Form { shape: Shape::SlowState { tau_s: 0.5, drive: Drive::RollRate }, per_alpha: true };
+        let entries = form.entries();
+        assert_eq!(entries[0], ("tau_s", FormValue::Number(0.5)));
+        assert_eq!(entries[1], ("drive", FormValue::Choice("roll_rate")));
+        assert_eq!(entries[2], ("per_alpha", FormValue::Flag(true)));
+        assert_eq!(form.n_profiled(), 1);
+        assert_eq!(Form { shape: Shape::Mode { freq_hz: 9.0, zeta: 0.02 }, per_alpha: false }.n_profiled(), 2);
+        assert_eq!(Form { shape: Shape::Wander { knot_spacing_s: 2.0 }, per_alpha: false }.n_profiled(), 0);
+    }
+
+    #[test]
+    fn every_candidate_has_a_distinct_name_and_a_separating_experiment() {
+        let names: std::collections::BTreeSet<&str> = ALL.iter().map(|c| c.name()).collect();
+        assert_eq!(names.len(), ALL.len());
+        for candidate in ALL {
+            assert!(!candidate.separating_experiment().is_empty(), "{}", candidate.name());
+        }
+    }
+}

@@ -1,0 +1,72 @@
+//! What the balance reads besides the aerodynamics (G3, G4): the wing's inertial reaction to
+//! the roll acceleration and the weight moment of a centre of gravity off the roll axis, when
+//! the tares were not subtracted (gap-diagnosis.md sections 2.3 and 2.4).
+
+use firmware_sim::effect::Effect;
+
+use super::{BalanceCandidate, Context, Params, Shape, gains};
+use crate::diagnose::streams::RunStreams;
+
+/// Standard gravity, m/s^2.
+const G_MPS2: f64 = 9.806_65;
+
+/// `inertial_tare`: `-I phi_ddot / (q S b)` left in the balance.
+#[derive(Debug, Clone, Copy)]
+pub struct InertialTare;
+
+/// `gravity_tare`: `m g d sin(phi + phase) / (q S b)` (the weight moment about the roll axis,
+/// with the offset it leaves at `phi = 0`).
+#[derive(Debug, Clone, Copy)]
+pub struct GravityTare;
+
+impl BalanceCandidate for InertialTare {
+    fn effect(&self) -> Option<Effect> {
+        Some(Effect::InertialTare)
+    }
+
+    fn separating_experiment(&self) -> &'static str {
+        "wind-off runs with the same roll motion (the inertial reaction stays, the aerodynamics vanish)"
+    }
+
+    fn shapes(&self, _sample_hz: f64, _context: &Context<'_>) -> Vec<Shape> {
+        vec![Shape::Fixed]
+    }
+
+    fn columns(&self, _shape: &Shape, run: &RunStreams, _run_idx: usize, _context: &Context<'_>) -> Vec<Vec<f64>> {
+        vec![run.phi_ddot_rad_s2.clone()]
+    }
+
+    fn params(&self, _shape: &Shape, beta: &[f64], context: &Context<'_>, _columns: &[Vec<Vec<f64>>]) -> Params {
+        // Balance = aero - I phi_ddot: the column's coefficient is -I / (q S b).
+        gains(&["ixx_kgm2"], &beta.iter().map(|b| -b * context.moment_scale_nm).collect::<Vec<_>>())
+    }
+}
+
+impl BalanceCandidate for GravityTare {
+    fn effect(&self) -> Option<Effect> {
+        Some(Effect::GravityTare)
+    }
+
+    fn separating_experiment(&self) -> &'static str {
+        "wind-off runs at held roll angles (the weight moment stays) or a second free-stream speed"
+    }
+
+    fn shapes(&self, _sample_hz: f64, _context: &Context<'_>) -> Vec<Shape> {
+        vec![Shape::Fixed]
+    }
+
+    fn columns(&self, _shape: &Shape, run: &RunStreams, _run_idx: usize, _context: &Context<'_>) -> Vec<Vec<f64>> {
+        vec![run.phi_rad.iter().map(|phi| phi.sin()).collect(), run.phi_rad.iter().map(|phi| phi.cos()).collect()]
+    }
+
+    fn params(&self, _shape: &Shape, beta: &[f64], context: &Context<'_>, _columns: &[Vec<Vec<f64>>]) -> Params {
+        // m g d sin(phi + p) = m g d cos p sin(phi) + m g d sin p cos(phi).
+        let (b0, b1) = (beta.first().copied().unwrap_or(0.0), beta.get(1).copied().unwrap_or(0.0));
+        let moment_nm = context.moment_scale_nm * b0.hypot(b1);
+        vec![
+            ("weight_moment_nm".into(), moment_nm),
+            ("mass_offset_kgm".into(), moment_nm / G_MPS2),
+            ("phase_deg".into(), b1.atan2(b0).to_degrees()),
+        ]
+    }
+}
