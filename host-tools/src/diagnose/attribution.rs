@@ -48,7 +48,12 @@ impl Profiled {
 
 /// Columns of a candidate in one form, for every run.
 #[must_use]
-pub fn all_columns(candidate: Candidate, form: &Form, runs: &[RunStreams], context: &Context<'_>) -> Vec<Vec<Vec<f64>>> {
+pub fn all_columns(
+    candidate: Candidate,
+    form: &Form,
+    runs: &[RunStreams],
+    context: &Context<'_>,
+) -> Vec<Vec<Vec<f64>>> {
     runs.iter().enumerate().map(|(idx, run)| candidates::columns(candidate, form, run, idx, context)).collect()
 }
 

@@ -477,7 +477,9 @@ impl BalanceAttribution {
         let mut round = first_round.clone();
         let this = Self { first_round: Vec::new(), named: Vec::new(), remainder: Vec::new() };
         while named.len() < 3 {
-            let Some(best) = round.iter().find(|p| !named.iter().any(|n| n.candidate.name() == p.candidate.name())).cloned() else {
+            let Some(best) =
+                round.iter().find(|p| !named.iter().any(|n| n.candidate.name() == p.candidate.name())).cloned()
+            else {
                 break;
             };
             if !this.qualifies(&best, streams, floor) {

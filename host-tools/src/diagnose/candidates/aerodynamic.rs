@@ -68,9 +68,7 @@ impl BalanceCandidate for VortexLag {
         log_grid(0.03, 5.0, 30)
             .into_iter()
             .filter(|tau_s| *tau_s >= context.slow_tau_min_s)
-            .flat_map(|tau_s| {
-                [Drive::Sideslip, Drive::RollRate].map(|drive| Shape::SlowState { tau_s, drive })
-            })
+            .flat_map(|tau_s| [Drive::Sideslip, Drive::RollRate].map(|drive| Shape::SlowState { tau_s, drive }))
             .collect()
     }
 
