@@ -16,7 +16,7 @@
 
 use std::ops::Range;
 
-use estimator_core::coeffs::coupling_var;
+use estimator_core::coeffs::{MAX_TERMS, coupling_var};
 use estimator_core::sparse::SparseModel;
 
 use super::FitError;
@@ -102,12 +102,13 @@ pub fn fit_coupling(
         swept.select(|coefficients: &[f64]| score(library, runs, coefficients), &SelectionConfig::default())?;
     // The operator without terms (the linear superposition) is always a candidate.
     scored.selected =
-        select_index(&scored, SelectBy::OneStep).ok_or(FitError::Internal("no coupling model eligible"))?;
+        select_index(&scored, SelectBy::OneStep, MAX_TERMS).ok_or(FitError::Internal("no coupling model eligible"))?;
     let support: Vec<bool> = scored.selected().point.coefficients.iter().map(|&c| c != 0.0).collect();
     let (samples, targets) = rows(runs, CouplingRun::training);
     let coefficients = refit_support(&library.theta(&samples)?, &targets, &support)?;
     let model = library.to_sparse_model(&coefficients)?;
-    let report = sparse_fit(library, &scored, SelectBy::OneStep, scored.selected, &coefficients, targets.len());
+    let report =
+        sparse_fit(library, &scored, SelectBy::OneStep, MAX_TERMS, scored.selected, &coefficients, targets.len());
     Ok((model, report))
 }
 

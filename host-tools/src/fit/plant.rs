@@ -17,7 +17,7 @@
 
 use std::ops::Range;
 
-use estimator_core::coeffs::{PlantParams, plant_var};
+use estimator_core::coeffs::{MAX_TERMS, PlantParams, plant_var};
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{DMatrix, DVector, Dyn, Owned};
 use rayon::prelude::*;
@@ -31,6 +31,10 @@ use crate::sindy::{
     HeldoutScore, Library, Normalisation, QrProblem, SelectionConfig, StlsConfig, log_thresholds, sweep,
 };
 
+/// Most terms of a selected increment model: one slot of the core's table
+/// ([`MAX_TERMS`]) stays free for the identity term `C_l,AFC[k]` that turns the increment into
+/// the difference equation ([`add_identity`]), which the selected support may lack.
+const PLANT_MAX_TERMS: usize = MAX_TERMS - 1;
 /// Variable names of the plant library, in the core's order (`estimator_core::coeffs::plant_var`).
 pub const PLANT_VARIABLES: [&str; 5] = ["cl_afc", "cmu", "dcmu", "alpha", "cl_slow"];
 
@@ -231,7 +235,8 @@ pub fn fit_plant(
         model.terms[..usize::from(model.n_terms)].iter().any(|term| term.monomial.powers()[plant_var::CL_SLOW] > 0);
     // Without slow terms the pole changes nothing; zero says so in the tables.
     let slow_pole = if uses_slow { shape.slow_pole as f32 } else { 0.0 };
-    let report = sparse_fit(&library, &scored, SelectBy::FreeRun, scored.selected, &coefficients, n_train);
+    let report =
+        sparse_fit(&library, &scored, SelectBy::FreeRun, PLANT_MAX_TERMS, scored.selected, &coefficients, n_train);
     Ok((PlantParams { slow_pole, cmu_max: cmu_max as f32, model }, report))
 }
 
@@ -270,7 +275,8 @@ fn sweep_at(
     let swept = sweep(&problem, &stls, &thresholds)?;
     let validation = |coefficients: &[f64]| score(library, runs, filtered, side, shape, coefficients);
     let mut scored = swept.select(validation, &SelectionConfig::default())?;
-    scored.selected = select_index(&scored, SelectBy::FreeRun).ok_or(FitError::NoPlantModel { side })?;
+    scored.selected =
+        select_index(&scored, SelectBy::FreeRun, PLANT_MAX_TERMS).ok_or(FitError::NoPlantModel { side })?;
     Ok(PoleSweep { shape, scored })
 }
 

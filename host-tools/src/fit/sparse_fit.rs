@@ -9,7 +9,6 @@
 //! autocorrelation of the validation error (Bartlett 1946; von Storch & Zwiers, Statistical
 //! Analysis in Climate Research, section 17.1).
 
-use estimator_core::coeffs::MAX_TERMS;
 use serde::Serialize;
 
 use nalgebra::DMatrix;
@@ -87,23 +86,25 @@ pub enum SelectBy {
 }
 
 /// BIC of one scored model on the chosen validation error, with the effective sample size
-/// carried in `HeldoutScore::n_samples`; `None` when it has more than [`MAX_TERMS`] terms or
-/// no finite error.
-fn criterion_of(point: &ScoredPoint, by: SelectBy) -> Option<f64> {
+/// carried in `HeldoutScore::n_samples`; `None` when it has more than `max_terms` terms or no
+/// finite error.
+fn criterion_of(point: &ScoredPoint, by: SelectBy, max_terms: usize) -> Option<f64> {
     let rms = match by {
         SelectBy::OneStep => Some(point.heldout.one_step_rms),
         SelectBy::FreeRun => point.heldout.free_run_rms,
     }?;
-    let eligible = point.point.n_terms <= MAX_TERMS && rms.is_finite() && point.heldout.n_samples > 0;
+    let eligible = point.point.n_terms <= max_terms && rms.is_finite() && point.heldout.n_samples > 0;
     let mse = rms.max(1e-300).powi(2);
     eligible.then(|| InformationCriterion::Bic.value(point.heldout.n_samples, mse, point.point.n_terms))
 }
 
-/// Picks the model with the smallest `criterion_of`; ties go to fewer terms. `None` when no
-/// model is eligible.
+/// Picks the model with the smallest `criterion_of` among those with at most `max_terms` terms
+/// (the core holds [`estimator_core::coeffs::MAX_TERMS`]; a model that gains a term after selection must leave room for
+/// it); ties go to fewer terms. `None` when no model is eligible.
 #[must_use]
-pub fn select_index(scored: &ScoredSweep, by: SelectBy) -> Option<usize> {
-    let candidates = scored.points.iter().enumerate().filter_map(|(idx, point)| Some((idx, criterion_of(point, by)?)));
+pub fn select_index(scored: &ScoredSweep, by: SelectBy, max_terms: usize) -> Option<usize> {
+    let candidates =
+        scored.points.iter().enumerate().filter_map(|(idx, point)| Some((idx, criterion_of(point, by, max_terms)?)));
     candidates
         .min_by(|a, b| {
             a.1.total_cmp(&b.1).then(scored.points[a.0].point.n_terms.cmp(&scored.points[b.0].point.n_terms))
@@ -139,6 +140,7 @@ pub fn sparse_fit(
     library: &Library,
     scored: &ScoredSweep,
     by: SelectBy,
+    max_terms: usize,
     selected: usize,
     coefficients: &[f64],
     n_train: usize,
@@ -154,7 +156,7 @@ pub fn sparse_fit(
             validation_one_step_rms: point.heldout.one_step_rms,
             validation_free_run_rms: point.heldout.free_run_rms,
             validation_effective_samples: point.heldout.n_samples,
-            criterion: criterion_of(point, by),
+            criterion: criterion_of(point, by, max_terms),
             pareto: point.pareto,
         })
         .collect();
