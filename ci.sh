@@ -17,8 +17,9 @@ setup() {
         if [ "$(id -u)" = 0 ]; then apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq qemu-system-arm >/dev/null
         else sudo apt-get update -qq && sudo DEBIAN_FRONTEND=noninteractive apt-get install -y -qq qemu-system-arm >/dev/null; fi
     fi
-    # numpy runs the second, independent tunnel of the `foreign` job (tools/foreign-tunnel).
-    python3 -c "import numpy" 2>/dev/null || python3 -m pip install --quiet --disable-pip-version-check "numpy>=1.24"
+    # numpy and scipy run the second, independent tunnel of the `foreign` job (tools/foreign-tunnel).
+    python3 -c "import numpy, scipy" 2>/dev/null \
+        || python3 -m pip install --quiet --disable-pip-version-check -r tools/foreign-tunnel/requirements.txt
 }
 
 fmt() { cargo fmt --all -- --check; }
