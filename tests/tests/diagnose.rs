@@ -106,6 +106,25 @@ fn dead_pressure_channel_is_named_with_its_channel() {
     assert_eq!(diagnosis.where_.channel.as_deref(), Some("cp05"));
 }
 
+/// A channel stuck from the middle of every run: named on its channel, and the fault runs on
+/// into the held-out part, where it must account for most of the gap. In 30 s runs the
+/// selection blocks hold 9 to 10 s, so the samples the fault is fitted on cannot tell an onset
+/// at 9 s from one at 10 s: the fault's interval is taken from the samples that chose it, not
+/// from the scan's grid.
+#[test]
+fn channel_stuck_from_mid_run_is_named_with_its_channel() {
+    let fault = PressureFault { channel: 5, mode: FaultMode::Stuck, value: 0.0, spike_rate_hz: 0.0, start_s: 10.0 };
+    let mut scenario = Scenario { duration_s: 30.0, ..scenario(77) };
+    scenario.effects = Effects { pressure_fault: Some(fault), ..Effects::default() };
+    let mut dataset = scenario.simulate(&|| {}).expect("simulates");
+    dataset.extra.clear();
+    let diagnosis = run(&dataset);
+    let first = diagnosis.effects.first().expect("an effect is named");
+    assert_eq!(first.name, "pressure_fault");
+    assert_eq!(diagnosis.where_.channel.as_deref(), Some("cp05"));
+    assert!(first.shrink > 0.5, "held-out shrink {}", first.shrink);
+}
+
 /// A small fixed slice of the blind campaign: the truth is sealed, the scorer reads it after
 /// the diagnosis, no effect is named on the clean case, and the summary counts every case.
 #[test]

@@ -283,8 +283,15 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
     let onset_s = |onsets: &faults::Onsets| -> f64 {
         runs.iter()
             .zip(&onsets.per_run)
-            .filter_map(|(run, onset)| onset.map(|k| run.t_s.get(k).copied().unwrap_or(0.0)))
+            .filter_map(|(run, interval)| interval.as_ref().map(|r| run.t_s.get(r.start).copied().unwrap_or(0.0)))
             .fold(f64::INFINITY, f64::min)
+    };
+    // Seconds the fault holds, summed over the runs.
+    let faulty_s = |onsets: &faults::Onsets| -> f64 {
+        runs.iter()
+            .zip(&onsets.per_run)
+            .filter_map(|(run, interval)| interval.as_ref().map(|r| r.len() as f64 / run.sample_hz))
+            .sum()
     };
     let runs_with = |onsets: &faults::Onsets| onsets.per_run.iter().filter(|o| o.is_some()).count();
     let mut shapes: Vec<SensorFinding> = Vec::new();
@@ -302,6 +309,7 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
             params: vec![
                 ("mode".into(), ParamValue::Text("stuck".into())),
                 ("start_s".into(), ParamValue::Number(start_s)),
+                ("faulty_s".into(), ParamValue::Number(faulty_s(&stuck))),
                 ("runs".into(), ParamValue::Number(runs_with(&stuck) as f64)),
             ],
             channel: Some(name.clone()),
@@ -350,30 +358,31 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
             ),
         });
     }
-    // Bias: the innovation's mean steps at each run's own onset (or from its start), by one value.
+    // Bias: the innovation's mean steps over each run's own interval, by a value of its own.
     let bias = faults::scan(runs, tap, faults::Shape::Bias, tau);
     if runs_with(&bias) > 0
         && let Some(fit) = regression::fit_through_origin(&segments, &bias.columns)
     {
         let start_s = onset_s(&bias);
+        let largest = fit.beta.iter().copied().fold(0.0, |acc: f64, b| if b.abs() > acc.abs() { b } else { acc });
         shapes.push(SensorFinding {
             effect: Effect::PressureFault,
             params: vec![
                 ("mode".into(), ParamValue::Text("bias".into())),
-                ("value".into(), ParamValue::Number(fit.beta[0])),
+                ("value".into(), ParamValue::Number(largest)),
                 ("start_s".into(), ParamValue::Number(start_s)),
+                ("faulty_s".into(), ParamValue::Number(faulty_s(&bias))),
                 ("runs".into(), ParamValue::Number(runs_with(&bias) as f64)),
             ],
             channel: Some(name.clone()),
             channels: vec![name.clone()],
             explained: fit.explained_per_sample(),
             noise_var,
-            delta_bic: delta_bic(&fit, tau, 1 + runs_with(&bias)),
+            delta_bic: delta_bic(&fit, tau, 2 * runs_with(&bias)),
             heldout: regression::heldout_gap(&segments, &bias.columns, &fit.beta, &fit.touched),
             selection: regression::selection_gap(&segments, &bias.columns, &fit.beta, &fit.touched),
             evidence: format!(
-                "{name}'s innovation mean steps by {:.4} from t = {start_s:.2} s in {} run(s)",
-                fit.beta[0],
+                "{name}'s innovation mean steps by up to {largest:.4} from t = {start_s:.2} s in {} run(s)",
                 runs_with(&bias)
             ),
         });

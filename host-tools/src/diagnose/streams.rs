@@ -268,3 +268,36 @@ fn innovations(run: &Run, set: &CoefficientSet, phi_rad: &[f64], cmu: &[Vec<f64>
     }
     out
 }
+
+/// A run for the diagnosis modules' own tests: the split every diagnosis uses (four fifths
+/// training with interleaved selection blocks, the last fifth held out), still wing, no blowing,
+/// and the given pressure readings and innovations (the filter's expectation is their
+/// difference).
+#[cfg(test)]
+pub(crate) fn synthetic_run(sample_hz: f64, cp: Vec<Vec<f64>>, innovation: Vec<Vec<f64>>) -> RunStreams {
+    let n = cp.first().map_or(0, Vec::len);
+    let training = 0..n * 4 / 5;
+    let zeros = vec![0.0; n];
+    RunStreams {
+        file: "synthetic.csv".into(),
+        kind: RunKind::Static,
+        alpha_deg: 10.0,
+        sample_hz,
+        select: Interleave::over(training.clone(), sample_hz),
+        training,
+        heldout: n * 4 / 5..n,
+        t_s: (0..n).map(|i| i as f64 / sample_hz).collect(),
+        phi_rad: zeros.clone(),
+        phi_dot_rad_s: zeros.clone(),
+        phi_ddot_rad_s2: zeros.clone(),
+        cmu: [zeros.clone(), zeros.clone()],
+        cl_egk: zeros.clone(),
+        cl_afc_side: [zeros.clone(), zeros.clone()],
+        coupling: zeros.clone(),
+        cl_measured: zeros.clone(),
+        residual: zeros.clone(),
+        cp_dot: cp.iter().map(|_| zeros.clone()).collect(),
+        cp,
+        innovation,
+    }
+}
