@@ -40,10 +40,12 @@ nostd() {
 }
 
 # Datasets from a second tunnel written apart from firmware-sim's (other equations, excitation,
-# noise and file conventions): fit a clean recording, then every injectable effect must be named.
+# noise and file conventions): fit a clean recording, then every injectable effect must be named;
+# then a slice of a blind campaign, every case on its own seed (campaign_check.sh).
 foreign() {
     cargo build --release -p host-tools
     tools/foreign-tunnel/check.sh "${CARGO_TARGET_DIR:-target}/foreign-tunnel"
+    tools/foreign-tunnel/campaign_check.sh "${CARGO_TARGET_DIR:-target}/foreign-campaign"
 }
 
 jobs=("$@")

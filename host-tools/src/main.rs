@@ -406,6 +406,16 @@ fn write_validation(
             .map(|row| format!("{:<48} {:>8} {:>10}\n", row[0], row[1], row[2]))
             .collect::<String>()
     );
+    println!(
+        "{:<18} {}",
+        "right/cases",
+        score::RATIO_BINS
+            .iter()
+            .map(|(lo, hi)| if hi.is_finite() { format!("{lo:.0}-{hi:.0}") } else { format!(">={lo:.0}") })
+            .map(|bin| format!("{bin:<7}"))
+            .collect::<Vec<_>>()
+            .join(" ")
+    );
     for (class, cells) in &summary.accuracy_by_ratio {
         println!("{class:<18} {}", cells.iter().map(|(r, t)| format!("{r:>3}/{t:<3}")).collect::<Vec<_>>().join(" "));
     }

@@ -94,9 +94,11 @@ fn quantile(values: &mut [f64], q: f64) -> Option<f64> {
     Some(values[lo] + (pos - lo as f64) * (values[hi] - values[lo]))
 }
 
-/// The ratio used for binning: a dead channel (no reading at all) counts as large.
+/// The ratio used for binning: a case without an effect has none (it sits in the first bin
+/// alone, so that every row adds up to its cases); a dead channel (no reading at all) counts as
+/// large.
 fn ratio_of(record: &CaseRecord) -> f64 {
-    record.ratio.unwrap_or(f64::INFINITY)
+    if record.class == "none" { 0.0 } else { record.ratio.unwrap_or(f64::INFINITY) }
 }
 
 /// Summarises the records.
@@ -127,7 +129,7 @@ pub fn summarise(records: &[CaseRecord]) -> Summary {
             .iter()
             .map(|&(lo, hi)| {
                 let in_bin: Vec<&&CaseRecord> =
-                    cases.iter().filter(|r| class == "none" || (ratio_of(r) >= lo && ratio_of(r) < hi)).collect();
+                    cases.iter().filter(|r| ratio_of(r) >= lo && ratio_of(r) < hi).collect();
                 (in_bin.iter().filter(|r| r.correct).count(), in_bin.len())
             })
             .collect();
@@ -200,8 +202,9 @@ pub fn report(records: &[CaseRecord], summary: &Summary, described: &str) -> cra
             ],
         ],
     };
-    let bins = RATIO_BINS
-        .map(|(lo, hi)| if hi.is_finite() { format!("{lo:.0}-{hi:.0}") } else { format!(">= {lo:.0} (dead channel)") });
+    let bins = RATIO_BINS.map(|(lo, hi)| {
+        if hi.is_finite() { format!("{lo:.0}-{hi:.0}") } else { format!(">= {lo:.0} (or dead channel)") }
+    });
     let by_ratio = Table {
         caption: "Right / cases, by injected class and effect RMS over noise RMS".into(),
         header: std::iter::once("class".to_owned())

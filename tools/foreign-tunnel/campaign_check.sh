@@ -1,0 +1,39 @@
+#!/usr/bin/env bash
+# A slice of a blind campaign on the second tunnel (campaign.py): one case per class, the
+# model fitted on the campaign's clean recording and every case recorded with its own seed
+# (excitation and noise differ from the fit's), the truth sealed before the diagnosis runs.
+# `validate-diagnosis --campaign` prints the criterion table; this script fails if the command
+# fails, if a case is not scored, if a sealed truth does not match its hash, or if the clean
+# case names an effect (a wrong name where there is none). The other criteria are printed, not
+# checked: at one case per class they are a sample, and their goals are measured on the full
+# campaign (README, "A second, independent tunnel").
+#
+#   tools/foreign-tunnel/campaign_check.sh [WORK_DIR] [SEED]   (python3 with numpy and scipy,
+#                                                               a release build of host-tools)
+set -euo pipefail
+source "$(dirname "$0")/common.sh"
+seed="${2:-3}"
+rm -rf "$work/campaign" "$work/report"
+python3 "$here/campaign.py" --out "$work/campaign" --seed "$seed" --cases-per-class 1 --duration-s 20 2>/dev/null
+"$tools" validate-diagnosis --campaign "$work/campaign" --report "$work/report" 2>/dev/null
+python3 - "$work/campaign" "$work/report/validation.json" <<'PY'
+import hashlib, json, sys
+campaign = json.load(open(f"{sys.argv[1]}/campaign.json"))
+validation = json.load(open(sys.argv[2]))
+failures = []
+cases = {c["id"]: c for c in validation["cases"]}
+for case in campaign["cases"]:
+    record = cases.get(case["id"])
+    if record is None:
+        failures.append(f"case {case['id']}: not scored")
+        continue
+    sealed = open(f"{sys.argv[1]}/{case['truth']}", "rb").read()
+    if hashlib.sha256(sealed).hexdigest() != case["truth_sha256"]:
+        failures.append(f"case {case['id']}: sealed truth does not match its hash")
+    if record["class"] == "none" and record["named"]:
+        failures.append(f"case {case['id']}: no effect injected, but {record['named'][0]} named")
+print(f"foreign campaign slice: {len(cases)} of {len(campaign['cases'])} cases scored")
+for failure in failures:
+    print(f"foreign campaign slice: {failure}")
+sys.exit(1 if failures else 0)
+PY
