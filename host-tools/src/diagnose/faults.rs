@@ -4,9 +4,8 @@
 //! on the training part by the evidence of the fault's shape in that run alone.
 //!
 //! Two shapes are scanned. A bias adds a constant to the reading over its interval: the
-//! innovation's mean steps (by a value of its own in each run); a level over a whole run is not
-//! taken for one, since the sim's map of a tap at one angle and motion is off by as much from
-//! one recording to the next. A stuck (or flat-dead) channel
+//! innovation's mean steps (by a value of its own in each run), or sits off zero over the whole
+//! run (an offset from the start). A stuck (or flat-dead) channel
 //! stops following the pressure and reads a constant with its transducer's noise: over the
 //! interval the innovation is that constant less the filter's expectation of the channel, so it
 //! regresses on the expectation with a slope near -1 (a live channel: near 0), and the reading,
@@ -187,18 +186,10 @@ fn best_interval(run: &RunStreams, tap: usize, shape: Shape, tau: f64) -> Option
                 continue;
             }
             let gain = match shape {
-                // A level over every sample of a run is the sim's own map at that run's angle
-                // and motion (its taps' offsets differ from recording to recording); a fault's
-                // bias steps: the mean inside against the mean outside.
-                Shape::Bias => {
-                    let (a, b) = (inside.n, total.n - inside.n);
-                    if b < 1.0 {
-                        0.0
-                    } else {
-                        let (m_in, m_out) = (inside.y / a, (total.y - inside.y) / b);
-                        a * b / (a + b) * (m_in - m_out).powi(2)
-                    }
-                }
+                // A level inside, zero outside (a healthy channel's innovation has no mean):
+                // the fault's own column, so that an interval over part of the run and one over
+                // all of it (an offset from the start) compete on the same footing.
+                Shape::Bias => inside.y * inside.y / inside.n,
                 Shape::Stuck => {
                     let sxx = Sums::var(inside.x, inside.xx, inside.n);
                     let sxy = inside.xy - inside.x * inside.y / inside.n;
@@ -226,7 +217,7 @@ fn best_interval(run: &RunStreams, tap: usize, shape: Shape, tau: f64) -> Option
     let start = if Some(&first) == samples.first() { 0 } else { first };
     let interval = start..if Some(&last) == samples.last() { n } else { last + 1 };
     let remaining = (ssr0 - gain).max(f64::MIN_POSITIVE);
-    // Two parameters (level and slope, or level and the mean outside), and the choice of the
+    // Up to two parameters (a level, and a stuck reading's slope), and the choice of the
     // interval among GRID (GRID + 1) / 2.
     let choices = (GRID * (GRID + 1) / 2) as f64;
     let evidence = n_eff * (ssr0 / remaining).ln() - 2.0 * n_eff.ln() - choices.ln();
@@ -314,13 +305,13 @@ mod tests {
     }
 
     #[test]
-    fn a_bias_over_part_of_a_run_is_found_but_a_level_over_the_whole_run_is_not() {
+    fn a_bias_over_part_of_a_run_is_found_over_that_part_and_one_from_the_start_over_the_run() {
         let part = run_with(4, |t_s, e| if (4.0..13.0).contains(&t_s) { e + 0.02 } else { e });
         let (start, end) = interval_s(&part, Shape::Bias).expect("a bias interval");
         assert!((start - 4.0).abs() <= CELL_S + 0.3, "start {start} s, end {end} s");
         assert!((end - 13.0).abs() <= CELL_S + 0.3, "end {end} s");
         let whole = run_with(5, |_, e| e + 0.02);
-        assert_eq!(interval_s(&whole, Shape::Bias), None);
+        assert_eq!(interval_s(&whole, Shape::Bias), Some((0.0, DURATION_S)));
     }
 
     #[test]
