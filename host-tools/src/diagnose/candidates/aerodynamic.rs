@@ -176,3 +176,106 @@ impl BalanceCandidate for Recalibration {
         gains(&["disturbance_gain", "plant_gain"], &beta.iter().map(|b| 1.0 + b).collect::<Vec<_>>())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::candidates::{test_context, test_fit};
+    use crate::diagnose::streams::{RunStreams, synthetic_run};
+
+    /// A rolling run at 20 deg: a sum of two sines in phi, its rate, and an eGK moment.
+    fn rolling_run(n: usize) -> RunStreams {
+        let sample_hz = 200.0;
+        let mut run = synthetic_run(sample_hz, vec![vec![0.0; n]], vec![vec![0.0; n]]);
+        run.alpha_deg = 20.0;
+        let t: Vec<f64> = (0..n).map(|i| i as f64 / sample_hz).collect();
+        run.phi_rad = t.iter().map(|t| 0.5 * (1.3 * t).sin() + 0.2 * (4.1 * t + 1.0).sin()).collect();
+        run.phi_dot_rad_s = t.iter().map(|t| 0.65 * (1.3 * t).cos() + 0.82 * (4.1 * t + 1.0).cos()).collect();
+        run.cl_egk = run.phi_rad.iter().map(|phi| -0.01 * phi).collect();
+        run
+    }
+
+    /// Every vortex-lag form is slower than the context's floor and at most 5 s, and each time
+    /// constant comes with both drives.
+    #[test]
+    fn vortex_lag_forms_are_slow_and_cover_both_drives() {
+        let context = test_context();
+        let shapes = VortexLag.shapes(200.0, &context);
+        let taus: Vec<f64> = shapes
+            .iter()
+            .map(|shape| match shape {
+                Shape::SlowState { tau_s, .. } => *tau_s,
+                other => panic!("not a slow state: {other:?}"),
+            })
+            .collect();
+        assert!(taus.iter().all(|tau| (context.slow_tau_min_s..=5.0 + 1e-9).contains(tau)));
+        assert!(taus.iter().any(|tau| (tau - 5.0).abs() < 1e-9), "reaches 5 s");
+        let sideslip = shapes.iter().filter(|s| matches!(s, Shape::SlowState { drive: Drive::Sideslip, .. })).count();
+        assert_eq!(2 * sideslip, shapes.len());
+    }
+
+    /// A second state driven by the sideslip, `0.02 LP_0.8s[beta]`, is found by profiling the
+    /// family: the sideslip drive, a time constant within one grid step of 0.8 s, the gain.
+    #[test]
+    fn vortex_lag_profile_finds_drive_and_time_constant() {
+        let context = test_context();
+        let run = rolling_run(6000);
+        let alpha = 20f64.to_radians();
+        let beta: Vec<f64> = run.phi_rad.iter().map(|phi| (alpha.sin() * phi.sin()).asin()).collect();
+        let truth: Vec<f64> = first_order_lag(&beta, 0.8, 1.0 / run.sample_hz).iter().map(|b| 0.02 * b).collect();
+        let best = VortexLag
+            .shapes(run.sample_hz, &context)
+            .into_iter()
+            .map(|shape| {
+                let columns = VortexLag.columns(&shape, &run, 0, &context);
+                let coef = test_fit(&columns, &truth);
+                let sse: f64 = (0..run.len())
+                    .map(|i| (truth[i] - columns.iter().zip(&coef).map(|(c, b)| c[i] * b).sum::<f64>()).powi(2))
+                    .sum();
+                (sse, shape, coef)
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .unwrap();
+        let Shape::SlowState { tau_s, drive } = best.1 else { unreachable!() };
+        assert_eq!(drive, Drive::Sideslip);
+        assert!((tau_s / 0.8).ln().abs() < (5.0f64 / 0.03).ln() / 29.0, "tau {tau_s}");
+        let params = VortexLag.params(&best.1, &best.2, &context, &[]);
+        assert_eq!(params[1].0, "per_rad_sideslip");
+        assert!((params[1].1 - 0.02).abs() < 0.004, "{params:?}");
+    }
+
+    /// Without blowing every coupling column is zero (the interaction needs both); with a
+    /// constant differential blowing of the reference level, the first column is the eGK
+    /// moment itself.
+    #[test]
+    fn coupling_needs_both_motion_and_blowing() {
+        let context = test_context();
+        let mut run = rolling_run(400);
+        let columns = Coupling.columns(&Shape::Fixed, &run, 0, &context);
+        assert_eq!(columns.len(), 9);
+        assert!(columns.iter().flatten().all(|v| *v == 0.0));
+        run.cmu = [vec![context.cmu_ref; 400], vec![0.0; 400]];
+        let columns = Coupling.columns(&Shape::Fixed, &run, 0, &context);
+        assert!(columns[0].iter().zip(&run.cl_egk).all(|(c, e)| (c - e).abs() < 1e-15));
+        assert!(columns[1].iter().zip(&run.cl_egk).all(|(c, e)| (c - e).abs() < 1e-15));
+    }
+
+    /// Roll damping's column is the reduced rate, and its gain is `C_l,p` as fitted.
+    #[test]
+    fn roll_damping_recovers_clp() {
+        let context = test_context();
+        let run = rolling_run(2000);
+        let residual: Vec<f64> = run.phi_dot_rad_s.iter().map(|p| -0.05 * p * context.half_span_time_s).collect();
+        let columns = RollDamping.columns(&Shape::Fixed, &run, 0, &context);
+        let beta = test_fit(&columns, &residual);
+        let params = RollDamping.params(&Shape::Fixed, &beta, &context, &[]);
+        assert!((params[0].1 + 0.05).abs() < 1e-9, "{params:?}");
+    }
+
+    /// Recalibration reports gains relative to one: a zero coefficient is the sim unchanged.
+    #[test]
+    fn recalibration_gains_are_relative_to_one() {
+        let params = Recalibration.params(&Shape::Fixed, &[0.0, -0.25], &test_context(), &[]);
+        assert_eq!(params, vec![("disturbance_gain".to_owned(), 1.0), ("plant_gain".to_owned(), 0.75)]);
+    }
+}

@@ -410,9 +410,94 @@ fn difference(a: &[f64], b: &[f64]) -> Vec<f64> {
     a.iter().zip(b).map(|(x, y)| x - y).collect()
 }
 
+/// A context for the candidates' unit tests: the built-in coefficient set, `q S b` 2 N m, `b /
+/// (2 U)` 0.01 s, two runs at 0 and 20 deg.
+#[cfg(test)]
+pub(crate) fn test_context() -> Context<'static> {
+    Context {
+        set: &estimator_core::coeffs::BUILT_IN,
+        moment_scale_nm: 2.0,
+        half_span_time_s: 0.01,
+        cmu_ref: 0.02,
+        n_runs: 2,
+        slow_tau_min_s: 0.1,
+        resonance_min_hz: 4.0,
+        alphas_deg: vec![0.0, 20.0],
+        longest_run_s: 10.0,
+    }
+}
+
+/// Least squares of `target` on `columns` (normal equations, for the candidates' unit tests).
+#[cfg(test)]
+pub(crate) fn test_fit(columns: &[Vec<f64>], target: &[f64]) -> Vec<f64> {
+    let k = columns.len();
+    let gram = nalgebra::DMatrix::from_fn(k, k, |i, j| columns[i].iter().zip(&columns[j]).map(|(a, b)| a * b).sum());
+    let rhs = nalgebra::DVector::from_fn(k, |i, _| columns[i].iter().zip(target).map(|(a, b)| a * b).sum());
+    gram.lu().solve(&rhs).expect("regular test columns").iter().copied().collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A per-alpha form repeats each base column once per angle, non-zero only in the slot of
+    /// the run's own angle; the physical parameters come back per angle under `name@alpha`.
+    #[test]
+    fn per_alpha_columns_sit_in_their_angles_slot_and_report_per_angle() {
+        let context = test_context();
+        let mut run = crate::diagnose::streams::synthetic_run(100.0, vec![vec![0.0; 50]], vec![vec![0.0; 50]]);
+        run.alpha_deg = 20.0;
+        run.phi_dot_rad_s = vec![3.0; 50];
+        let form = Form { shape: Shape::Fixed, per_alpha: true };
+        let cols = columns(&RollDamping, &form, &run, 0, &context);
+        assert_eq!(cols.len(), 2);
+        assert!(cols[0].iter().all(|v| *v == 0.0), "0 deg slot of a 20 deg run");
+        assert!(cols[1].iter().all(|v| (*v - 0.03).abs() < 1e-15), "p_hat = 3 rad/s x 0.01 s");
+        let params = physical_params(&RollDamping, &form, &[-0.2, -0.3], &context, &[cols]);
+        assert_eq!(params["clp@0"], serde_json::json!(-0.2));
+        assert_eq!(params["clp@20"], serde_json::json!(-0.3));
+        assert!(!params.contains_key("per_alpha"));
+    }
+
+    /// A non-finite fitted figure is reported as null, never as a number.
+    #[test]
+    fn non_finite_parameters_are_null() {
+        let context = test_context();
+        let form = Form { shape: Shape::Fixed, per_alpha: false };
+        let params = physical_params(&RollDamping, &form, &[f64::NAN], &context, &[]);
+        assert_eq!(params["clp"], serde_json::Value::Null);
+        assert_eq!(FormValue::Number(f64::INFINITY).to_json(), serde_json::Value::Null);
+    }
+
+    /// The log grid starts and ends at its bounds with a constant ratio.
+    #[test]
+    fn log_grid_spans_its_bounds_geometrically() {
+        let grid = log_grid(0.01, 10.0, 4);
+        for (got, want) in grid.iter().zip([0.01, 0.1, 1.0, 10.0]) {
+            assert!((got / want - 1.0).abs() < 1e-12, "{got} vs {want}");
+        }
+        assert_eq!(log_grid(0.5, 2.0, 1), vec![0.5]);
+    }
+
+    /// The resonance's lowest frequency is an octave above the roll's band: a 3 Hz roll gives
+    /// about 6 Hz, a 0.2 Hz roll the 2 Hz floor, no rolling run the floor.
+    #[test]
+    fn resonance_floor_is_an_octave_above_the_motion() {
+        let sample_hz = 200.0;
+        let roll = |freq_hz: f64| {
+            let n = 4000;
+            let mut run = crate::diagnose::streams::synthetic_run(sample_hz, vec![vec![0.0; n]], vec![vec![0.0; n]]);
+            run.kind = firmware_sim::dataset::RunKind::Roll;
+            run.phi_rad = (0..n).map(|i| (std::f64::consts::TAU * freq_hz * i as f64 / sample_hz).sin()).collect();
+            run
+        };
+        let fast = resonance_min_hz(&[roll(3.0)]);
+        assert!((fast - 6.0).abs() <= 0.5, "3 Hz roll: {fast} Hz");
+        assert_eq!(resonance_min_hz(&[roll(0.2)]), 2.0);
+        let mut still = roll(3.0);
+        still.kind = firmware_sim::dataset::RunKind::Actuation;
+        assert_eq!(resonance_min_hz(&[still]), 2.0);
+    }
 
     #[test]
     fn lag_and_resonator_have_unit_dc_gain() {

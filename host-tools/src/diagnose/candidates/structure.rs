@@ -151,3 +151,77 @@ pub fn resonator(values: &[f64], freq_hz: f64, zeta: f64, dt_s: f64) -> Vec<f64>
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::candidates::{test_context, test_fit};
+    use crate::diagnose::streams::synthetic_run;
+
+    /// Driven at its natural frequency, a resonator settles to `1 / (2 zeta)` times the input
+    /// amplitude (the bilinear transform is pre-warped there).
+    #[test]
+    fn resonator_peak_gain_is_one_over_two_zeta() {
+        let (sample_hz, freq_hz, zeta) = (1000.0, 20.0, 0.05);
+        let input: Vec<f64> =
+            (0..20_000).map(|i| (std::f64::consts::TAU * freq_hz * i as f64 / sample_hz).sin()).collect();
+        let out = resonator(&input, freq_hz, zeta, 1.0 / sample_hz);
+        let amplitude = out[15_000..].iter().fold(0.0, |acc: f64, v| acc.max(v.abs()));
+        assert!((amplitude - 10.0).abs() < 0.1, "{amplitude}");
+    }
+
+    /// The resonance's family starts at the context's floor, stops at 0.35 of the sample rate,
+    /// and holds damping from 0.005.
+    #[test]
+    fn resonance_forms_span_the_stated_ranges() {
+        let shapes = BalanceResonance.shapes(1000.0, &test_context());
+        let (mut low, mut high, mut least_zeta) = (f64::MAX, 0.0f64, f64::MAX);
+        for shape in &shapes {
+            let Shape::Mode { freq_hz, zeta } = *shape else { panic!("{shape:?}") };
+            (low, high, least_zeta) = (low.min(freq_hz), high.max(freq_hz), least_zeta.min(zeta));
+        }
+        assert!((low - 4.0).abs() < 1e-9 && (high - 250.0).abs() < 1e-9 && least_zeta == 0.005);
+        assert_eq!(shapes.len(), 60 * RESONANCE_DAMPING.len());
+    }
+
+    /// A zero that wanders, piecewise linear with kinks at 2 s and 6 s, is reproduced exactly by
+    /// the 2 s knots of run 1; run 0's columns are zero in run 1; the largest drift is the value
+    /// at the end of the run.
+    #[test]
+    fn wandering_drift_is_reproduced_in_its_own_runs_columns() {
+        let context = test_context();
+        let sample_hz = 100.0;
+        let run = synthetic_run(sample_hz, vec![vec![0.0; 1001]], vec![vec![0.0; 1001]]);
+        let drift: Vec<f64> =
+            run.t_s.iter().map(|t| 1e-3 * t - 3e-3 * (t - 2.0).max(0.0) + 2.5e-3 * (t - 6.0).max(0.0)).collect();
+        let shape = Shape::Wander { knot_spacing_s: 2.0 };
+        let columns = BiasDrift.columns(&shape, &run, 1, &context);
+        let width = 1 + (context.longest_run_s / 2.0).floor() as usize;
+        assert_eq!(columns.len(), 2 * width);
+        assert!(columns[..width].iter().flatten().all(|v| *v == 0.0), "run 0's slots");
+        let own = &columns[width..];
+        // The columns of the knots at and past the run's end (10 s) are all zero: leave them out.
+        let used: Vec<Vec<f64>> = own.iter().filter(|c| c.iter().any(|v| *v != 0.0)).cloned().collect();
+        let beta = test_fit(&used, &drift);
+        let fitted: Vec<f64> = (0..run.len()).map(|i| used.iter().zip(&beta).map(|(c, b)| c[i] * b).sum()).collect();
+        let worst = fitted.iter().zip(&drift).map(|(f, d)| (f - d).abs()).fold(0.0, f64::max);
+        assert!(worst < 1e-12, "{worst}");
+        let full_beta: Vec<f64> = {
+            let mut it = beta.iter();
+            own.iter().map(|c| if c.iter().any(|v| *v != 0.0) { *it.next().unwrap() } else { 0.0 }).collect()
+        };
+        let params = BiasDrift.params(&shape, &full_beta, &context, &[own.to_vec()]);
+        assert!((params[0].1 - drift[1000]).abs() < 1e-12, "{params:?} vs {}", drift[1000]);
+    }
+
+    /// A trend of degree 2 holds t/T and (t/T)^2 and nothing else.
+    #[test]
+    fn trend_columns_are_powers_of_normalised_time() {
+        let context = test_context();
+        let run = synthetic_run(10.0, vec![vec![0.0; 11]], vec![vec![0.0; 11]]);
+        let columns = BiasDrift.columns(&Shape::Trend { degree: 2 }, &run, 0, &context);
+        assert_eq!(columns.len(), 4);
+        assert!((columns[0][5] - 0.5).abs() < 1e-12 && (columns[1][5] - 0.25).abs() < 1e-12);
+        assert!(columns[2].iter().chain(&columns[3]).all(|v| *v == 0.0));
+    }
+}

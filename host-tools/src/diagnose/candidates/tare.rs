@@ -70,3 +70,45 @@ impl BalanceCandidate for GravityTare {
         ]
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::candidates::{test_context, test_fit};
+    use crate::diagnose::streams::synthetic_run;
+
+    /// A balance that keeps `-I phi_ddot` gives back `I`: the column is the roll acceleration
+    /// and the coefficient's sign and scale are undone (`q S b` = 2 N m in the test context).
+    #[test]
+    fn inertial_tare_recovers_the_inertia() {
+        let context = test_context();
+        let ixx_kgm2 = 3.0e-4;
+        let mut run = synthetic_run(1000.0, vec![vec![0.0; 2000]], vec![vec![0.0; 2000]]);
+        run.phi_ddot_rad_s2 = (0..2000).map(|i| 40.0 * (i as f64 * 0.013).sin()).collect();
+        let residual: Vec<f64> = run.phi_ddot_rad_s2.iter().map(|a| -ixx_kgm2 * a / context.moment_scale_nm).collect();
+        let columns = InertialTare.columns(&Shape::Fixed, &run, 0, &context);
+        let beta = test_fit(&columns, &residual);
+        let params = InertialTare.params(&Shape::Fixed, &beta, &context, &[columns]);
+        assert_eq!(params[0].0, "ixx_kgm2");
+        assert!((params[0].1 / ixx_kgm2 - 1.0).abs() < 1e-9, "{params:?}");
+    }
+
+    /// A weight moment `m g d sin(phi + 30 deg)` gives back `m g d`, `m d` and the 30 deg
+    /// phase from the sine and cosine columns.
+    #[test]
+    fn gravity_tare_recovers_moment_offset_and_phase() {
+        let context = test_context();
+        let (moment_nm, phase) = (0.12, 30f64.to_radians());
+        let mut run = synthetic_run(1000.0, vec![vec![0.0; 3000]], vec![vec![0.0; 3000]]);
+        run.phi_rad = (0..3000).map(|i| 0.6 * (i as f64 * 0.004).sin()).collect();
+        let residual: Vec<f64> =
+            run.phi_rad.iter().map(|phi| moment_nm * (phi + phase).sin() / context.moment_scale_nm).collect();
+        let columns = GravityTare.columns(&Shape::Fixed, &run, 0, &context);
+        let beta = test_fit(&columns, &residual);
+        let params = GravityTare.params(&Shape::Fixed, &beta, &context, &[columns]);
+        let get = |name: &str| params.iter().find(|(n, _)| n == name).map(|(_, v)| *v).unwrap();
+        assert!((get("weight_moment_nm") - moment_nm).abs() < 1e-9);
+        assert!((get("mass_offset_kgm") - moment_nm / 9.806_65).abs() < 1e-9);
+        assert!((get("phase_deg") - 30.0).abs() < 1e-6);
+    }
+}
