@@ -146,82 +146,200 @@ impl Sums {
         self.ee += other.ee;
     }
 
+    fn minus(&self, other: &Self) -> Self {
+        Self {
+            n: self.n - other.n,
+            y: self.y - other.y,
+            yy: self.yy - other.yy,
+            x: self.x - other.x,
+            xx: self.xx - other.xx,
+            xy: self.xy - other.xy,
+            r: self.r - other.r,
+            rr: self.rr - other.rr,
+            e: self.e - other.e,
+            ee: self.ee - other.ee,
+        }
+    }
+
     fn var(sum: f64, sq: f64, n: f64) -> f64 {
         if n > 0.0 { (sq - sum * sum / n).max(0.0) } else { 0.0 }
     }
 }
 
-/// The interval with the most evidence for `shape` in one run, if decisive.
+/// The interval with the most evidence for `shape` in one run's training part, if decisive.
 fn best_interval(run: &RunStreams, tap: usize, shape: Shape, tau: f64) -> Option<std::ops::Range<usize>> {
+    let samples: Vec<usize> = run.fit_samples().collect();
+    let found = best_interval_over(run, tap, shape, tau, &samples)?;
+    // An interval that runs to the end of the training part runs on to the end of the run (the
+    // held-out part), one from its first sample from the start.
+    let usable = usable_samples(run, tap, &samples);
+    let start = if usable.first() == Some(&found.start) { 0 } else { found.start };
+    let end = if usable.last().map(|last| last + 1) == Some(found.end) { run.len() } else { found.end };
+    Some(start..end)
+}
+
+/// The samples of `candidates` where both the innovation and the expectation are finite.
+fn usable_samples(run: &RunStreams, tap: usize, candidates: &[usize]) -> Vec<usize> {
+    let nu = &run.innovation[tap];
+    candidates.iter().copied().filter(|&i| nu[i].is_finite() && (run.cp[tap][i] - nu[i]).is_finite()).collect()
+}
+
+/// The interval of `shape` with the most evidence over `samples`, if decisive: from the first
+/// to the last of the samples that chose it.
+///
+/// The samples are cut into [`GRID`] cells of equal count (so a part made of interleaved
+/// blocks is scanned at the same resolution as a contiguous one), every run of whole cells is
+/// scored, and the best one's two ends are then moved sample by sample within a cell of where
+/// they were (a fault starts where it starts, not on a cell edge).
+fn best_interval_over(
+    run: &RunStreams,
+    tap: usize,
+    shape: Shape,
+    tau: f64,
+    samples: &[usize],
+) -> Option<std::ops::Range<usize>> {
     let nu = &run.innovation[tap];
     let expected = expectation(run, tap);
-    let samples: Vec<usize> = run.fit_samples().filter(|&i| nu[i].is_finite() && expected[i].is_finite()).collect();
-    if samples.len() < 20 {
+    let samples = usable_samples(run, tap, samples);
+    let m = samples.len();
+    if m < 20 {
         return None;
     }
     let half = ((SMOOTHING_HALF_S * run.sample_hz).round() as usize).max(1);
     let (reading, smooth_expected) = (moving_average(&run.cp[tap], half), moving_average(&expected, half));
-    let n = run.len();
-    let cell_of = |i: usize| (i * GRID / n.max(1)).min(GRID - 1);
-    let mut cells = vec![Sums::default(); GRID];
+    // Prefix sums over the samples: the sums of any stretch in constant time.
+    let mut prefix = Vec::with_capacity(m + 1);
+    prefix.push(Sums::default());
     for &i in &samples {
         let (y, x, r, e) = (nu[i], expected[i], reading[i], smooth_expected[i]);
         let (r, e) = if r.is_finite() && e.is_finite() { (r, e) } else { (x, x) };
-        let cell = &mut cells[cell_of(i)];
-        cell.add(&Sums { n: 1.0, y, yy: y * y, x, xx: x * x, xy: x * y, r, rr: r * r, e, ee: e * e });
+        let mut next = *prefix.last().unwrap_or(&Sums::default());
+        next.add(&Sums { n: 1.0, y, yy: y * y, x, xx: x * x, xy: x * y, r, rr: r * r, e, ee: e * e });
+        prefix.push(next);
     }
-    let mut total = Sums::default();
-    cells.iter().for_each(|c| total.add(c));
+    let stretch = |a: usize, b: usize| prefix[b].minus(&prefix[a]);
+    let total = stretch(0, m);
     let ssr0 = Sums::var(total.y, total.yy, total.n);
     if ssr0 <= 0.0 {
         return None;
     }
-    let n_eff = samples.len() as f64 / tau.max(1.0);
-    let mut best: Option<(std::ops::Range<usize>, f64)> = None;
-    for first in 0..GRID {
-        let mut inside = Sums::default();
-        for (last, cell) in cells.iter().enumerate().skip(first) {
-            inside.add(cell);
-            if inside.n < 10.0 {
-                continue;
+    let gain_of = |a: usize, b: usize| -> f64 {
+        let inside = stretch(a, b);
+        if inside.n < 10.0 {
+            return 0.0;
+        }
+        match shape {
+            // A level inside, zero outside (a healthy channel's innovation has no mean): the
+            // fault's own column, so that an interval over part of the run and one over all of
+            // it (an offset from the start) compete on the same footing.
+            Shape::Bias => inside.y * inside.y / inside.n,
+            Shape::Stuck => {
+                let sxx = Sums::var(inside.x, inside.xx, inside.n);
+                let sxy = inside.xy - inside.x * inside.y / inside.n;
+                let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+                let flat = Sums::var(inside.r, inside.rr, inside.n)
+                    <= STUCK_FLATNESS * Sums::var(inside.e, inside.ee, inside.n);
+                if (STUCK_SLOPE.0..=STUCK_SLOPE.1).contains(&slope) && flat { sxy * sxy / sxx } else { 0.0 }
             }
-            let gain = match shape {
-                // A level inside, zero outside (a healthy channel's innovation has no mean):
-                // the fault's own column, so that an interval over part of the run and one over
-                // all of it (an offset from the start) compete on the same footing.
-                Shape::Bias => inside.y * inside.y / inside.n,
-                Shape::Stuck => {
-                    let sxx = Sums::var(inside.x, inside.xx, inside.n);
-                    let sxy = inside.xy - inside.x * inside.y / inside.n;
-                    let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
-                    let flat = Sums::var(inside.r, inside.rr, inside.n)
-                        <= STUCK_FLATNESS * Sums::var(inside.e, inside.ee, inside.n);
-                    if (STUCK_SLOPE.0..=STUCK_SLOPE.1).contains(&slope) && flat { sxy * sxy / sxx } else { 0.0 }
-                }
-            };
-            if best.as_ref().is_none_or(|(_, g)| gain > *g) {
-                let start = n * first / GRID;
-                let end = if last + 1 == GRID { n } else { n * (last + 1) / GRID };
-                best = Some((start..end, gain));
+        }
+    };
+    let edge = |cell: usize| cell * m / GRID;
+    let mut best: Option<((usize, usize), f64)> = None;
+    for first in 0..GRID {
+        for last in first..GRID {
+            let (a, b) = (edge(first), edge(last + 1));
+            let gain = gain_of(a, b);
+            if gain > 0.0 && best.as_ref().is_none_or(|(_, g)| gain > *g) {
+                best = Some(((a, b), gain));
             }
         }
     }
-    let (interval, gain) = best?;
-    // Trimmed to the samples that chose it: a cell edge inside a selection block is not where
-    // the fault starts or ends (no sample there said so), and a fault put on samples it was not
-    // seen on would be judged there against a reading it never had. An interval that runs to the
-    // end of the training part runs on to the end of the run (the held-out part), one from its
-    // first sample from the start.
-    let first = samples.iter().copied().find(|i| interval.contains(i))?;
-    let last = samples.iter().copied().rev().find(|i| interval.contains(i))?;
-    let start = if Some(&first) == samples.first() { 0 } else { first };
-    let interval = start..if Some(&last) == samples.last() { n } else { last + 1 };
+    let ((mut a, mut b), mut gain) = best?;
+    // An end at the part's own end stays there: a fault from the start (or to the end) is a
+    // claim of its own, not a cell edge to refine.
+    let cell = m.div_ceil(GRID);
+    let (fixed_start, fixed_end) = (a == 0, b == m);
+    for candidate in (a.saturating_sub(cell)..(a + cell).min(b)).filter(|_| !fixed_start) {
+        let g = gain_of(candidate, b);
+        if g > gain {
+            (a, gain) = (candidate, g);
+        }
+    }
+    for candidate in ((b.saturating_sub(cell).max(a + 1))..=(b + cell).min(m)).filter(|_| !fixed_end) {
+        let g = gain_of(a, candidate);
+        if g > gain {
+            (b, gain) = (candidate, g);
+        }
+    }
     let remaining = (ssr0 - gain).max(f64::MIN_POSITIVE);
     // Up to two parameters (a level, and a stuck reading's slope), and the choice of the
     // interval among GRID (GRID + 1) / 2.
     let choices = (GRID * (GRID + 1) / 2) as f64;
+    let n_eff = m as f64 / tau.max(1.0);
     let evidence = n_eff * (ssr0 / remaining).ln() - 2.0 * n_eff.ln() - choices.ln();
-    (evidence >= MIN_RUN_DELTA_BIC).then_some(interval)
+    (evidence >= MIN_RUN_DELTA_BIC).then(|| samples[a]..samples[b - 1] + 1)
+}
+
+/// The gap of channel `tap` over a part of every run (the selection blocks or the held-out
+/// part) before and after a fault of `shape` found in that part itself.
+///
+/// Why found there and not carried from the training part: a fault that comes and goes (a
+/// loose connector, a tube that clears) is not predictable in time; what the training part
+/// fixes is the channel and the fault's shape (and a stuck reading's slope on the expectation,
+/// `stuck_slope`), and what a part can check is that the same detector, with the same evidence
+/// threshold, finds the fault there too and that removing it shrinks the gap. The level over
+/// each interval found is the one quantity estimated in the part (a fault's level, like a
+/// drift's, is a state, not a parameter): one number per interval, paid for by the detector's
+/// threshold. A healthy channel gives no interval and no shrink.
+#[must_use]
+pub fn part_gap(
+    runs: &[RunStreams],
+    tap: usize,
+    shape: Shape,
+    tau: f64,
+    stuck_slope: f64,
+    heldout: bool,
+) -> regression::HeldoutGap {
+    let (mut before, mut after, mut n) = (0.0, 0.0, 0usize);
+    let mut differences = Vec::new();
+    for run in runs {
+        let samples: Vec<usize> = if heldout { run.heldout.clone().collect() } else { run.select.samples().collect() };
+        let usable = usable_samples(run, tap, &samples);
+        let nu = &run.innovation[tap];
+        let expected = expectation(run, tap);
+        let found = best_interval_over(run, tap, shape, tau, &usable);
+        let inside: Vec<usize> =
+            usable.iter().copied().filter(|i| found.as_ref().is_some_and(|r| r.contains(i))).collect();
+        // The fault's column over the interval: a constant (bias), or a constant less the
+        // expectation at the training part's slope (stuck); its level fitted here.
+        let column = |i: usize| match shape {
+            Shape::Bias => 0.0,
+            Shape::Stuck => stuck_slope * expected[i],
+        };
+        let level = mean_of(inside.iter().map(|&i| nu[i] - column(i)));
+        let mut last: Option<(usize, f64)> = None;
+        for &i in &usable {
+            let r = nu[i];
+            let effect = if found.as_ref().is_some_and(|range| range.contains(&i)) { level + column(i) } else { 0.0 };
+            before += r * r;
+            after += (r - effect) * (r - effect);
+            n += 1;
+            if let Some((j, prev)) = last
+                && j + 1 == i
+            {
+                differences.push(r - prev);
+            }
+            last = Some((i, r));
+        }
+    }
+    let mean = |sum: f64, count: usize| if count == 0 { 0.0 } else { sum / count as f64 };
+    regression::HeldoutGap {
+        mse_before: mean(before, n),
+        mse_after: mean(after, n),
+        noise_var: regression::robust_difference_var(&mut differences),
+        n,
+        floor_var: 0.0,
+    }
 }
 
 /// Segments of one channel's innovation (for the fit of the fault's columns).
@@ -319,6 +437,40 @@ mod tests {
         let run = run_with(6, |_, e| e);
         assert_eq!(interval_s(&run, Shape::Stuck), None);
         assert_eq!(interval_s(&run, Shape::Bias), None);
+    }
+
+    /// A fault that comes and goes is found again in the part it is judged on: a channel
+    /// stuck for one second inside the held-out part only (the training part never saw it)
+    /// shrinks the held-out gap by most of it; the same detector on a healthy channel finds
+    /// nothing there and changes nothing.
+    #[test]
+    fn a_fault_inside_the_held_out_part_is_found_there_and_a_healthy_channel_is_left_alone() {
+        let runs = [run_with(9, |t_s, e| if (17.0..18.0).contains(&t_s) { -0.4 } else { e })];
+        assert_eq!(scan(&runs, 0, Shape::Stuck, 1.0).per_run[0], None, "not in the training part");
+        let gap = part_gap(&runs, 0, Shape::Stuck, 1.0, -1.0, true);
+        assert!(gap.shrink() > 0.8, "held-out shrink {}", gap.shrink());
+        let bias =
+            part_gap(&[run_with(10, |t_s, e| if t_s >= 18.5 { e + 0.05 } else { e })], 0, Shape::Bias, 1.0, 0.0, true);
+        assert!(bias.shrink() > 0.8, "held-out bias shrink {}", bias.shrink());
+        let healthy = [run_with(11, |_, e| e)];
+        for shape in [Shape::Stuck, Shape::Bias] {
+            for heldout in [true, false] {
+                let gap = part_gap(&healthy, 0, shape, 1.0, -1.0, heldout);
+                assert!(gap.n > 0 && gap.mse_after == gap.mse_before, "{shape:?} heldout={heldout}");
+            }
+        }
+    }
+
+    /// On the selection blocks (interleaved with the training part) a fault inside one block is
+    /// found there.
+    #[test]
+    fn a_fault_inside_a_selection_block_is_found_there() {
+        let probe = run_with(12, |_, e| e);
+        let block: Vec<usize> = probe.select.samples().take(probe.select.block).collect();
+        let (from_s, to_s) = (block[0] as f64 / HZ + 0.1, *block.last().unwrap() as f64 / HZ - 0.1);
+        let runs = [run_with(12, |t_s, e| if (from_s..to_s).contains(&t_s) { e + 0.08 } else { e })];
+        let gap = part_gap(&runs, 0, Shape::Bias, 1.0, 0.0, false);
+        assert!(gap.shrink() > 0.8, "selection shrink {}", gap.shrink());
     }
 
     #[test]

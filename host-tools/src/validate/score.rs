@@ -15,14 +15,16 @@ pub fn sha256_hex(bytes: &[u8]) -> String {
     Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect()
 }
 
-/// Whether a case was diagnosed right: no effect named for `none`; `unattributed` for an
+/// Whether a case was diagnosed right: the verdict `none` for a clean recording; `unattributed` for an
 /// effect outside the vocabulary; the injected effect ranked first otherwise, and for a sensor
 /// effect with exactly the injected channels in `where` (a fault on the wrong tap, or a lag of
 /// one channel where all twelve lag, is wrong).
 #[must_use]
 pub fn is_correct(record: &CaseRecord) -> bool {
     if record.class == "none" {
-        record.named.is_empty()
+        // `unattributed` on a clean recording names nothing, but it is a false alarm: the
+        // contract's answer is `none` (the wrong-name rate is counted apart).
+        record.verdict == "none" && record.named.is_empty()
     } else if outside_vocabulary(&record.class) {
         record.verdict == "unattributed" && record.named.is_empty()
     } else {
@@ -94,6 +96,12 @@ fn quantile(values: &mut [f64], q: f64) -> Option<f64> {
     Some(values[lo] + (pos - lo as f64) * (values[hi] - values[lo]))
 }
 
+/// Whether `ratio` falls in the bin `[lo, hi)`; the last bin, open above, also holds an
+/// infinite ratio (a dead channel, whose whole signal is the gap).
+fn in_bin(ratio: f64, lo: f64, hi: f64) -> bool {
+    ratio >= lo && (ratio < hi || hi == f64::INFINITY)
+}
+
 /// The ratio used for binning: a case without an effect has none (it sits in the first bin
 /// alone, so that every row adds up to its cases); a dead channel (no reading at all) counts as
 /// large.
@@ -128,9 +136,8 @@ pub fn summarise(records: &[CaseRecord]) -> Summary {
         let bins = RATIO_BINS
             .iter()
             .map(|&(lo, hi)| {
-                let in_bin: Vec<&&CaseRecord> =
-                    cases.iter().filter(|r| ratio_of(r) >= lo && ratio_of(r) < hi).collect();
-                (in_bin.iter().filter(|r| r.correct).count(), in_bin.len())
+                let members: Vec<&&CaseRecord> = cases.iter().filter(|r| in_bin(ratio_of(r), lo, hi)).collect();
+                (members.iter().filter(|r| r.correct).count(), members.len())
             })
             .collect();
         accuracy_by_ratio.insert(class.to_owned(), bins);
@@ -283,5 +290,330 @@ pub fn report(records: &[CaseRecord], summary: &Summary, described: &str) -> cra
             },
             Section { heading: "Cases".into(), tables: vec![cases], ..Section::default() },
         ],
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A case as the campaign records it, with what the diagnosis said; `correct` is set by
+    /// hand in each test (from the scoring rules), not by [`is_correct`].
+    fn case(class: &str, ratio: Option<f64>, verdict: &str, named: &[&str]) -> CaseRecord {
+        CaseRecord {
+            id: 0,
+            class: class.into(),
+            alpha_deg: 10.0,
+            target_ratio: ratio.unwrap_or(0.0),
+            ratio,
+            truth: String::new(),
+            truth_sha256: String::new(),
+            truth_channels: Vec::new(),
+            verdict: verdict.into(),
+            named: named.iter().map(|n| (*n).to_owned()).collect(),
+            named_channels: Vec::new(),
+            shrink: None,
+            shrink_total: None,
+            correct: false,
+            diagnosis_s: 1.0,
+        }
+    }
+
+    fn channels(names: &[&str]) -> Vec<String> {
+        names.iter().map(|n| (*n).to_owned()).collect()
+    }
+
+    fn all_twelve() -> Vec<String> {
+        (1..=12).map(|tap| format!("cp{tap:02}")).collect()
+    }
+
+    /// A sensor case with its injected and named channels.
+    fn sensor_case(class: &str, named: &str, truth: &[&str], said: &[&str]) -> CaseRecord {
+        CaseRecord {
+            truth_channels: channels(truth),
+            named_channels: channels(said),
+            ..case(class, Some(2.0), "effect", &[named])
+        }
+    }
+
+    fn right(mut record: CaseRecord) -> CaseRecord {
+        record.correct = true;
+        record
+    }
+
+    fn with_shrink(mut record: CaseRecord, shrink: Option<f64>, shrink_total: Option<f64>) -> CaseRecord {
+        record.shrink = shrink;
+        record.shrink_total = shrink_total;
+        record
+    }
+
+    fn assert_close(actual: Option<f64>, expected: f64) {
+        let value = actual.expect("a figure");
+        assert!((value - expected).abs() < 1e-12, "{value} != {expected}");
+    }
+
+    /// The FIPS 180-2 test vectors of SHA-256: the seal of the truth must be the standard hash.
+    #[test]
+    fn sha256_matches_the_standard_test_vectors() {
+        assert_eq!(sha256_hex(b""), "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855");
+        assert_eq!(sha256_hex(b"abc"), "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
+    }
+
+    /// No effect injected: right exactly when the verdict is `none` (an `unattributed` false
+    /// alarm names nothing but is not right).
+    #[test]
+    fn a_none_case_is_right_only_as_none() {
+        assert!(is_correct(&case("none", Some(0.0), "none", &[])));
+        assert!(!is_correct(&case("none", Some(0.0), "unattributed", &[])));
+        assert!(!is_correct(&case("none", Some(0.0), "effect", &["bias_drift"])));
+    }
+
+    /// Outside the vocabulary: right only as `unattributed` with no name; `none` (the gap
+    /// missed) and a named vocabulary effect are both wrong.
+    #[test]
+    fn an_effect_outside_the_vocabulary_is_right_only_as_unattributed() {
+        for class in ["q_fluctuation", "cubic_stiffness"] {
+            assert!(is_correct(&case(class, Some(2.0), "unattributed", &[])), "{class}");
+            assert!(!is_correct(&case(class, Some(2.0), "none", &[])), "{class}");
+            assert!(!is_correct(&case(class, Some(2.0), "effect", &["roll_damping"])), "{class}");
+        }
+    }
+
+    /// A balance effect is right when it is ranked first, whatever follows it; second place or
+    /// no name is wrong; channels play no part for a balance effect.
+    #[test]
+    fn a_balance_effect_is_right_only_when_ranked_first() {
+        assert!(is_correct(&case("inertial_tare", Some(2.0), "effect", &["inertial_tare", "bias_drift"])));
+        assert!(!is_correct(&case("inertial_tare", Some(2.0), "effect", &["bias_drift", "inertial_tare"])));
+        assert!(!is_correct(&case("inertial_tare", Some(2.0), "unattributed", &[])));
+        let mut stray_channel = case("roll_damping", Some(2.0), "effect", &["roll_damping"]);
+        stray_channel.named_channels = channels(&["cp01"]);
+        assert!(is_correct(&stray_channel));
+    }
+
+    /// A pressure fault is right only on exactly the injected tap: the right name on the wrong
+    /// channel, an extra channel or no channel is wrong.
+    #[test]
+    fn a_pressure_fault_on_the_wrong_channel_is_wrong() {
+        assert!(is_correct(&sensor_case("pressure_fault", "pressure_fault", &["cp07"], &["cp07"])));
+        assert!(!is_correct(&sensor_case("pressure_fault", "pressure_fault", &["cp07"], &["cp03"])));
+        assert!(!is_correct(&sensor_case("pressure_fault", "pressure_fault", &["cp07"], &["cp07", "cp03"])));
+        assert!(!is_correct(&sensor_case("pressure_fault", "pressure_fault", &["cp07"], &[])));
+    }
+
+    /// The right channel under the wrong sensor effect is wrong.
+    #[test]
+    fn the_right_channel_under_the_wrong_sensor_effect_is_wrong() {
+        assert!(!is_correct(&sensor_case("pressure_fault", "pressure_lag", &["cp07"], &["cp07"])));
+    }
+
+    /// A lag of every channel named as a lag of one is wrong; the twelve named in another order
+    /// (or one twice) are the same set and right.
+    #[test]
+    fn a_lag_of_one_channel_where_all_twelve_lag_is_wrong() {
+        let mut record = sensor_case("pressure_lag", "pressure_lag", &[], &["cp05"]);
+        record.truth_channels = all_twelve();
+        assert!(!is_correct(&record));
+        let mut reversed = all_twelve();
+        reversed.reverse();
+        reversed.push("cp01".into());
+        record.named_channels = reversed;
+        assert!(is_correct(&record));
+    }
+
+    /// Without cases there is no figure: every share, median and quartile is `None` (never a
+    /// 0 %), the tables are empty, and every vocabulary effect (only those) has its empty slot.
+    #[test]
+    fn an_empty_campaign_has_no_figures_rather_than_zeros() {
+        let summary = summarise(&[]);
+        assert_eq!(summary.cases, 0);
+        assert_eq!(summary.none_false_name_rate, None);
+        assert_eq!(summary.none_verdict_rate, None);
+        assert_eq!(summary.vocabulary_top1_at_ratio_ge_1, None);
+        assert_eq!(summary.outside_unattributed_rate, None);
+        assert_eq!(summary.median_shrink_at_ratio_ge_1, None);
+        assert_eq!(summary.median_shrink_total_at_ratio_ge_1, None);
+        assert_eq!(summary.shrink_quartiles, None);
+        assert_eq!(summary.median_diagnosis_s, None);
+        assert!(summary.accuracy_by_ratio.is_empty() && summary.confusion.is_empty());
+        assert_eq!(summary.per_effect_top1_at_ratio_ge_1.len(), 11);
+        assert!(summary.per_effect_top1_at_ratio_ge_1.values().all(Option::is_none));
+        assert!(!summary.per_effect_top1_at_ratio_ge_1.contains_key("q_fluctuation"));
+        assert!(!summary.per_effect_top1_at_ratio_ge_1.contains_key("cubic_stiffness"));
+    }
+
+    /// A small campaign with hand-counted figures: 4 `none` cases (2 `none`, 1 `unattributed`,
+    /// 1 naming `bias_drift`), 2 outside the vocabulary (one right), 3 `roll_damping` cases.
+    /// The shares are the hand counts, and every accuracy row and confusion row adds up to its
+    /// class's cases.
+    #[test]
+    fn rates_are_the_hand_counts_and_every_row_adds_up_to_its_cases() {
+        let records = vec![
+            right(case("none", Some(0.0), "none", &[])),
+            right(case("none", Some(0.0), "unattributed", &[])),
+            case("none", Some(0.0), "effect", &["bias_drift"]),
+            right(case("none", Some(0.0), "none", &[])),
+            right(case("q_fluctuation", Some(1.2), "unattributed", &[])),
+            case("q_fluctuation", Some(2.5), "effect", &["roll_damping"]),
+            case("roll_damping", Some(0.5), "none", &[]),
+            right(case("roll_damping", Some(1.5), "effect", &["roll_damping"])),
+            right(case("roll_damping", Some(3.0), "effect", &["roll_damping"])),
+        ];
+        let summary = summarise(&records);
+        assert_eq!(summary.cases, 9);
+        assert_close(summary.none_false_name_rate, 0.25);
+        assert_close(summary.none_verdict_rate, 0.5);
+        assert_close(summary.outside_unattributed_rate, 0.5);
+        // Ratio >= 1 in the vocabulary: the two roll_damping cases at 1.5 and 3, both right.
+        assert_close(summary.vocabulary_top1_at_ratio_ge_1, 1.0);
+        assert_eq!(summary.per_effect_top1_at_ratio_ge_1["roll_damping"], Some(1.0));
+        assert_eq!(summary.accuracy_by_ratio["none"], vec![(3, 4), (0, 0), (0, 0), (0, 0)]);
+        assert_eq!(summary.accuracy_by_ratio["q_fluctuation"], vec![(0, 0), (1, 1), (0, 1), (0, 0)]);
+        assert_eq!(summary.accuracy_by_ratio["roll_damping"], vec![(0, 1), (1, 1), (1, 1), (0, 0)]);
+        let none_row = &summary.confusion["none"];
+        assert_eq!(none_row.get("(none)"), Some(&2));
+        assert_eq!(none_row.get("(unattributed)"), Some(&1));
+        assert_eq!(none_row.get("bias_drift"), Some(&1));
+        for (class, row) in &summary.accuracy_by_ratio {
+            let cases = records.iter().filter(|r| r.class == *class).count();
+            assert_eq!(row.iter().map(|(_, total)| total).sum::<usize>(), cases, "accuracy row {class}");
+            assert_eq!(summary.confusion[class].values().sum::<usize>(), cases, "confusion row {class}");
+        }
+    }
+
+    /// A `none` case has no effect, so whatever ratio it carries it sits in the first bin alone
+    /// and never in the ratio >= 1 figures.
+    #[test]
+    fn a_none_case_goes_in_the_first_ratio_bin_only() {
+        let records = [
+            right(case("none", Some(0.0), "none", &[])),
+            right(case("none", Some(2.5), "none", &[])),
+            right(case("none", None, "none", &[])),
+        ];
+        let summary = summarise(&records);
+        assert_eq!(summary.accuracy_by_ratio["none"], vec![(3, 3), (0, 0), (0, 0), (0, 0)]);
+        assert_eq!(summary.vocabulary_top1_at_ratio_ge_1, None);
+    }
+
+    /// Each bin holds `lo <= ratio < hi` (the constants by name): a ratio just below an edge
+    /// falls in the bin below it, the edge itself in the bin above; ratio >= 1 starts exactly
+    /// at 1.
+    #[test]
+    fn ratio_bins_split_exactly_at_their_edges() {
+        let below = |edge: f64| edge - 1e-9;
+        let ratios = [
+            below(RATIO_BINS[1].0),
+            RATIO_BINS[1].0,
+            below(RATIO_BINS[2].0),
+            RATIO_BINS[2].0,
+            below(RATIO_BINS[3].0),
+            RATIO_BINS[3].0,
+            1e6,
+        ];
+        let records: Vec<CaseRecord> =
+            ratios.iter().map(|&r| right(case("coupling", Some(r), "effect", &["coupling"]))).collect();
+        let summary = summarise(&records);
+        assert_eq!(summary.accuracy_by_ratio["coupling"], vec![(1, 1), (2, 2), (2, 2), (2, 2)]);
+        // Ratio >= 1: all but the first case; a wrong case below 1 would not count either.
+        let mut with_a_miss = records.clone();
+        with_a_miss[0].correct = false;
+        assert_close(summarise(&with_a_miss).vocabulary_top1_at_ratio_ge_1, 1.0);
+        with_a_miss[1].correct = false;
+        assert_close(summarise(&with_a_miss).vocabulary_top1_at_ratio_ge_1, 5.0 / 6.0);
+    }
+
+    /// A dead channel (ratio `None`: no reading left) counts as a large effect: it is part of
+    /// the ratio >= 1 accuracy of its effect.
+    #[test]
+    fn a_dead_channel_counts_in_the_ratio_ge_1_accuracy() {
+        let records = [
+            right(sensor_case("pressure_fault", "pressure_fault", &["cp07"], &["cp07"])),
+            CaseRecord { ratio: None, ..sensor_case("pressure_fault", "pressure_fault", &["cp02"], &["cp03"]) },
+        ];
+        let summary = summarise(&records);
+        assert_eq!(summary.per_effect_top1_at_ratio_ge_1["pressure_fault"], Some(0.5));
+        assert_close(summary.vocabulary_top1_at_ratio_ge_1, 0.5);
+    }
+
+    /// A dead channel counts as large, so its case belongs in the last ratio bin (labelled
+    /// ">= 4 (or dead channel)" in the report) and the row adds up to the class's cases.
+    #[test]
+    fn a_dead_channel_sits_in_the_last_ratio_bin() {
+        let dead =
+            CaseRecord { ratio: None, ..right(sensor_case("pressure_fault", "pressure_fault", &["cp07"], &["cp07"])) };
+        let summary = summarise(&[dead]);
+        assert_eq!(summary.accuracy_by_ratio["pressure_fault"], vec![(0, 0), (0, 0), (0, 0), (1, 1)]);
+    }
+
+    /// The median shrink takes only right first effects at ratio >= 1 whose shrink is measured:
+    /// a dead channel's (recorded `None`, its 1 holds by definition), a wrong case's and a case
+    /// below ratio 1 stay out. Left: 0.5, 0.7, 0.9, so the median is 0.7 (0.8 if the dead
+    /// channel's 1 got in) and the quartiles, interpolated linearly, 0.6 / 0.7 / 0.8.
+    #[test]
+    fn the_median_shrink_leaves_out_by_definition_wrong_and_weak_cases() {
+        let records = vec![
+            with_shrink(right(case("roll_damping", Some(2.0), "effect", &["roll_damping"])), Some(0.5), Some(0.4)),
+            with_shrink(right(case("roll_damping", Some(3.0), "effect", &["roll_damping"])), Some(0.7), Some(0.6)),
+            with_shrink(right(case("inertial_tare", Some(1.5), "effect", &["inertial_tare"])), Some(0.9), Some(0.8)),
+            // A dead channel: right, large, shrink not measured.
+            CaseRecord { ratio: None, ..right(sensor_case("pressure_fault", "pressure_fault", &["cp07"], &["cp07"])) },
+            // Wrong first effect: its shrink says nothing of the right one.
+            with_shrink(case("roll_damping", Some(2.0), "effect", &["vortex_lag"]), Some(0.1), Some(0.1)),
+            // Right but below ratio 1.
+            with_shrink(right(case("bias_drift", Some(0.6), "effect", &["bias_drift"])), Some(0.2), Some(0.2)),
+        ];
+        let summary = summarise(&records);
+        assert_close(summary.median_shrink_at_ratio_ge_1, 0.7);
+        assert_close(summary.median_shrink_total_at_ratio_ge_1, 0.6);
+        let [q1, q2, q3] = summary.shrink_quartiles.expect("quartiles");
+        assert!((q1 - 0.6).abs() < 1e-12 && (q2 - 0.7).abs() < 1e-12 && (q3 - 0.8).abs() < 1e-12, "{q1} {q2} {q3}");
+        // Ratio >= 1: four right of five; per effect, bias_drift has no case at ratio >= 1.
+        assert_close(summary.vocabulary_top1_at_ratio_ge_1, 0.8);
+        assert_close(summary.per_effect_top1_at_ratio_ge_1["roll_damping"], 2.0 / 3.0);
+        assert_eq!(summary.per_effect_top1_at_ratio_ge_1["bias_drift"], None);
+    }
+
+    /// The median of an even count is the mean of the middle two, of an odd count the middle
+    /// value (times of 4, 1, 3, 2 s: 2.5 s; with 10 s more: 3 s).
+    #[test]
+    fn the_median_time_is_the_middle_of_the_sorted_times() {
+        let timed = |s: f64| CaseRecord { diagnosis_s: s, ..case("none", Some(0.0), "none", &[]) };
+        let mut records: Vec<CaseRecord> = [4.0, 1.0, 3.0, 2.0].into_iter().map(timed).collect();
+        assert_close(summarise(&records).median_diagnosis_s, 2.5);
+        records.push(timed(10.0));
+        assert_close(summarise(&records).median_diagnosis_s, 3.0);
+    }
+
+    /// The report writes shares as percentages, a missing figure as "n/a" (never 0 %), the
+    /// worst single effect as the smallest per-effect share, and a dead channel's ratio as
+    /// "dead".
+    #[test]
+    fn the_report_writes_percentages_n_a_and_the_worst_effect() {
+        let records = vec![
+            right(case("none", Some(0.0), "none", &[])),
+            right(case("none", Some(0.0), "none", &[])),
+            right(case("none", Some(0.0), "none", &[])),
+            case("none", Some(0.0), "effect", &["bias_drift"]),
+            right(case("coupling", Some(2.0), "effect", &["coupling"])),
+            right(case("coupling", Some(2.0), "effect", &["coupling"])),
+            case("coupling", Some(2.0), "effect", &["roll_damping"]),
+            CaseRecord { ratio: None, ..right(sensor_case("pressure_fault", "pressure_fault", &["cp07"], &["cp07"])) },
+        ];
+        let summary = summarise(&records);
+        let report = report(&records, &summary, "test campaign");
+        let acceptance = &report.sections[0].tables[0];
+        let measured = |criterion: &str| -> &str {
+            let row = acceptance.rows.iter().find(|row| row[0] == criterion).expect("a row");
+            &row[2]
+        };
+        assert_eq!(measured("no effect: wrong effect named"), "25.0 %");
+        assert_eq!(measured("no effect: verdict none"), "75.0 %");
+        assert_eq!(measured("  worst single effect"), "66.7 %");
+        assert_eq!(measured("outside the vocabulary: unattributed"), "n/a");
+        assert_eq!(measured("median held-out shrink, ratio >= 1"), "n/a");
+        let cases = &report.sections[2].tables[0];
+        let dead_row = cases.rows.iter().find(|row| row[1] == "pressure_fault").expect("the dead case");
+        assert_eq!(dead_row[3], "dead");
+        assert_eq!(dead_row[7], "yes");
     }
 }
