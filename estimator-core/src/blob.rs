@@ -41,7 +41,7 @@ pub const HEADER_LEN: usize = 20;
 /// Written by hand (const string formatting does not exist); a unit test checks that the
 /// numbers in it are the current values of the constants. Update it with any change of a field
 /// or size: its hash, [`SCHEMA_HASH`], is what makes an old blob fail to load.
-pub const SCHEMA: &str = "rlcs coefficient set; schema_version=4; \
+pub const SCHEMA: &str = "rlcs coefficient set; schema_version=5; \
     N_TAPS=12; PRESSURE_RANK=10; N_PRESSURE_INPUTS=5; N_ALPHA=8; MAX_TERMS=16; MAX_VARS=6; MAX_DEGREE=3; \
     N_PLANT_VARS=5; N_COUPLING_VARS=6; \
     CoefficientSet{schema_version:u16,dt_s:f32,rate_filter:RateFilter,alpha_schedule_deg:[f32;N_ALPHA],\
@@ -49,7 +49,7 @@ pub const SCHEMA: &str = "rlcs coefficient set; schema_version=4; \
     coupling:SparseModel,controller:ControllerParams}; \
     RateFilter{rate_pole:f32,accel_pole:f32}; \
     EgkParams{tau1_s:f32,tau2_s:f32,breakdown_deg:f32,steepness_per_deg:f32,sideslip_gain:f32,\
-    clbeta_per_rad:f32,clp:f32,clpdot:f32,vortex_gain:f32,bias:f32,half_span_time_s:f32}; \
+    clbeta_per_rad:f32,clp:f32,clpdot:f32,clpp:f32,vortex_gain:f32,bias:f32,half_span_time_s:f32}; \
     PressureModel{rank:u8,a:[[f32;PRESSURE_RANK];PRESSURE_RANK],b:[[f32;N_PRESSURE_INPUTS];PRESSURE_RANK],\
     c:[[f32;PRESSURE_RANK];N_TAPS],cp_mean:[f32;N_TAPS],gain:[[f32;N_TAPS];PRESSURE_RANK],\
     innovation_std:[f32;N_TAPS],gate_sigma:f32,isolate_after:u16,cl_weights:[[f32;N_TAPS];N_ALPHA],cl_offset:[f32;N_ALPHA]}; \
@@ -67,7 +67,7 @@ pub const SCHEMA_HASH: u32 = fnv1a_32(SCHEMA.as_bytes());
 const PAYLOAD_CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
 
 /// f32 fields of one [`EgkParams`].
-const F32_PER_EGK: usize = 11;
+const F32_PER_EGK: usize = 12;
 /// f32 fields of one [`SparseModel`]: the term coefficients and the gate thresholds.
 const F32_PER_SPARSE: usize = MAX_TERMS + MAX_VARS;
 /// u8 fields of one [`SparseModel`]: each term's factors and gate mask, and `n_terms`.
@@ -439,6 +439,7 @@ fn check_all_finite(set: &CoefficientSet) -> Result<(), BlobError> {
             clbeta_per_rad,
             clp,
             clpdot,
+            clpp,
             vortex_gain,
             bias,
             half_span_time_s,
@@ -451,6 +452,7 @@ fn check_all_finite(set: &CoefficientSet) -> Result<(), BlobError> {
         all_finite(&[*clbeta_per_rad], "egk.clbeta_per_rad is not finite")?;
         all_finite(&[*clp], "egk.clp is not finite")?;
         all_finite(&[*clpdot], "egk.clpdot is not finite")?;
+        all_finite(&[*clpp], "egk.clpp is not finite")?;
         all_finite(&[*vortex_gain], "egk.vortex_gain is not finite")?;
         all_finite(&[*bias], "egk.bias is not finite")?;
         all_finite(&[*half_span_time_s], "egk.half_span_time_s is not finite")?;
@@ -590,6 +592,7 @@ mod tests {
                 clbeta_per_rad: -self.next(),
                 clp: -self.next(),
                 clpdot: -self.next(),
+                clpp: -self.next(),
                 vortex_gain: self.next(),
                 bias: -self.next(),
                 half_span_time_s: self.next(),
@@ -654,6 +657,7 @@ mod tests {
             clbeta_per_rad: big,
             clp: big,
             clpdot: big,
+            clpp: big,
             vortex_gain: big,
             bias: big,
             half_span_time_s: big,
@@ -785,6 +789,7 @@ mod tests {
                 e.clbeta_per_rad,
                 e.clp,
                 e.clpdot,
+                e.clpp,
                 e.vortex_gain,
                 e.bias,
                 e.half_span_time_s,

@@ -10,8 +10,11 @@
 //!   `x0(a) = (1 - tanh(k (a - a*))) / 2` (Jategaonkar, Flight Vehicle System Identification,
 //!   ch. 12), updated exactly for an input held over the step (zero-order hold):
 //!   `x[k] = x0 + (x[k-1] - x0) exp(-dt / tau1)`, then clamped to `[0, 1]`;
-//! - output map `C_l = C_l,beta beta + C_l,p p_hat + C_l,pdot p_hat_dot + K_v (x_L - x_R) + C_l,0`,
-//!   where the rate-damping and acceleration terms are the "extension" for a rolling motion.
+//! - output map `C_l = C_l,beta beta + C_l,p p_hat + C_l,pdot p_hat_dot +
+//!   C_l,p|p| p_hat |p_hat| + K_v (x_L - x_R) + C_l,0`, where the rate-damping and acceleration terms are the
+//!   "extension" for a rolling motion, and the quadratic damping is the `|phi_dot| phi_dot` term
+//!   of the slender-wing roll models (Elzebda, Nayfeh & Mook, J. Aircraft 26(8), 1989;
+//!   domain-models.md section 2.5).
 //!
 //! The input is held over the step that ends at `k` (the sample of step `k`), so the state of
 //! step `k` already responds to the input of step `k`.
@@ -61,6 +64,7 @@ fn interpolate(low: &EgkParams, high: &EgkParams, weight: f32) -> EgkParams {
         clbeta_per_rad: mix(low.clbeta_per_rad, high.clbeta_per_rad),
         clp: mix(low.clp, high.clp),
         clpdot: mix(low.clpdot, high.clpdot),
+        clpp: mix(low.clpp, high.clpp),
         vortex_gain: mix(low.vortex_gain, high.vortex_gain),
         bias: mix(low.bias, high.bias),
         half_span_time_s: mix(low.half_span_time_s, high.half_span_time_s),
@@ -155,6 +159,7 @@ impl Egk {
                 clbeta_per_rad: 0.0,
                 clp: 0.0,
                 clpdot: 0.0,
+                clpp: 0.0,
                 vortex_gain: 0.0,
                 bias: 0.0,
                 half_span_time_s: 0.0,
@@ -198,6 +203,7 @@ impl Egk {
         let cl = params.clbeta_per_rad * geometry.beta_rad
             + params.clp * p_hat
             + params.clpdot * p_hat_dot
+            + params.clpp * p_hat * p_hat.abs()
             + params.vortex_gain * (self.vortex[0] - self.vortex[1])
             + params.bias;
         (cl, reset)

@@ -33,6 +33,7 @@ const fn egk_prior(sideslip_gain: f32, clbeta_per_rad: f32, vortex_gain: f32) ->
         clbeta_per_rad,
         clp: -0.146_77,
         clpdot: -0.078_465,
+        clpp: 0.0,
         vortex_gain,
         bias: 0.0,
         half_span_time_s: HALF_SPAN_TIME_S,

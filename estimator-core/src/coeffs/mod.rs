@@ -17,7 +17,7 @@ pub use compiled::{BUILT_IN, CompiledDefault};
 pub use generated::DEFAULT;
 
 /// Version of the coefficient-set layout. Bump it whenever a field or a size changes.
-pub const SCHEMA_VERSION: u16 = 4;
+pub const SCHEMA_VERSION: u16 = 5;
 
 /// Number of upper-surface pressure taps.
 pub const N_TAPS: usize = 12;
@@ -141,6 +141,10 @@ pub struct EgkParams {
     pub clp: f32,
     /// Roll-acceleration derivative per unit `p_hat_dot = p_dot (b / (2 U))^2`.
     pub clpdot: f32,
+    /// Quadratic roll damping C_l,p|p| per unit `p_hat |p_hat|`: the rate damping of a slender
+    /// wing grows faster than the rate (the `|phi_dot| phi_dot` term of Elzebda, Nayfeh & Mook,
+    /// J. Aircraft 26(8), 1989; domain-models.md section 2.5).
+    pub clpp: f32,
     /// Vortex-asymmetry gain K_v.
     pub vortex_gain: f32,
     /// Constant offset C_l,0.

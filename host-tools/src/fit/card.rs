@@ -156,14 +156,27 @@ pub fn model_card(set: &CoefficientSet, report: &FitReport, dataset: &str) -> St
 fn egk_section(md: &mut String, report: &FitReport) {
     let _ = writeln!(
         md,
-        "## Disturbance model: extended Goman-Khrabrov\n\n`tau1 x' + x = x0(a - tau2 a')`, `x0(a) = (1 - tanh(k (a - a*))) / 2` per half-wing at `a = atan(tan alpha cos phi) -+ kb asin(sin alpha sin phi)`; `C_l = C_l,beta beta + C_l,p p_hat + C_l,pdot p_hat_dot + K_v (x_L - x_R) + C_l,0`.\n\n| alpha (deg) | tau1 (s) | tau2 (s) | a* (deg) | k (1/deg) | kb | C_l,beta | C_l,p | C_l,pdot | K_v | C_l,0 | train RMS prior | train RMS fit |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
+        "## Disturbance model: extended Goman-Khrabrov\n\n`tau1 x' + x = x0(a - tau2 a')`, `x0(a) = (1 - tanh(k (a - a*))) / 2` per half-wing at `a = atan(tan alpha cos phi) -+ kb asin(sin alpha sin phi)`; `C_l = C_l,beta beta + C_l,p p_hat + C_l,pdot p_hat_dot + C_l,p|p| p_hat |p_hat| + K_v (x_L - x_R) + C_l,0`.\n\n| alpha (deg) | tau1 (s) | tau2 (s) | a* (deg) | k (1/deg) | kb | C_l,beta | C_l,p | C_l,pdot | C_l,p\\|p\\| | K_v | C_l,0 | train RMS prior | train RMS fit |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
     );
     for egk in &report.egk {
         let p = &egk.params;
         let _ = writeln!(
             md,
-            "| {} | {:.4} | {:.4} | {:.2} | {:.3} | {:.3} | {:.4} | {:.4} | {:.4} | {:.4} | {:.2e} | {:.3e} | {:.3e} |",
-            egk.alpha_deg, p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], egk.rms_prior, egk.rms_fit
+            "| {} | {:.4} | {:.4} | {:.2} | {:.3} | {:.3} | {:.4} | {:.4} | {:.4} | {:.3} | {:.4} | {:.2e} | {:.3e} | {:.3e} |",
+            egk.alpha_deg,
+            p[0],
+            p[1],
+            p[2],
+            p[3],
+            p[4],
+            p[5],
+            p[6],
+            p[7],
+            p[8],
+            p[9],
+            p[10],
+            egk.rms_prior,
+            egk.rms_fit
         );
     }
     let _ = writeln!(md);

@@ -90,6 +90,7 @@ struct Params64 {
     clbeta_per_rad: f64,
     clp: f64,
     clpdot: f64,
+    clpp: f64,
     vortex_gain: f64,
     bias: f64,
     half_span_time_s: f64,
@@ -111,6 +112,7 @@ impl Coordinates {
             p.clbeta_per_rad,
             p.clp,
             p.clpdot,
+            p.clpp,
             p.vortex_gain,
             p.bias,
         ])
@@ -127,6 +129,7 @@ impl Coordinates {
             f(p.clbeta_per_rad),
             f(p.clp),
             f(p.clpdot),
+            f(p.clpp),
             f(p.vortex_gain),
             f(p.bias),
         ])
@@ -143,8 +146,9 @@ impl Coordinates {
             clbeta_per_rad: c[5],
             clp: c[6],
             clpdot: c[7],
-            vortex_gain: c[8],
-            bias: c[9],
+            clpp: c[8],
+            vortex_gain: c[9],
+            bias: c[10],
             half_span_time_s: f64::from(half_span_time_s),
         }
     }
@@ -160,6 +164,7 @@ impl Coordinates {
             clbeta_per_rad: p.clbeta_per_rad as f32,
             clp: p.clp as f32,
             clpdot: p.clpdot as f32,
+            clpp: p.clpp as f32,
             vortex_gain: p.vortex_gain as f32,
             bias: p.bias as f32,
             half_span_time_s,
@@ -169,7 +174,7 @@ impl Coordinates {
 
 /// The regressors of the eGK's output map at one sample: the map is linear in
 /// `(C_l,beta, C_l,p, C_l,pdot, K_v, C_l,0)` once the states are known.
-fn simulate_regressors(p: &Params64, alpha_deg: f64, dt_s: f64, signals: &RunSignals, end: usize) -> Vec<[f64; 5]> {
+fn simulate_regressors(p: &Params64, alpha_deg: f64, dt_s: f64, signals: &RunSignals, end: usize) -> Vec<[f64; 6]> {
     let alpha = alpha_deg.to_radians();
     let (sin_a, tan_a) = (alpha.sin(), alpha.tan());
     let decay = (-dt_s / p.tau1_s).exp();
@@ -192,13 +197,13 @@ fn simulate_regressors(p: &Params64, alpha_deg: f64, dt_s: f64, signals: &RunSig
         }
         let p_hat = phi_dot * p.half_span_time_s;
         let p_hat_dot = signals.phi_ddot_rad_s2[idx] * p.half_span_time_s * p.half_span_time_s;
-        out.push([beta, p_hat, p_hat_dot, vortex[0] - vortex[1], 1.0]);
+        out.push([beta, p_hat, p_hat_dot, p_hat * p_hat.abs(), vortex[0] - vortex[1], 1.0]);
     }
     out
 }
 
 fn simulate_f64(p: &Params64, alpha_deg: f64, dt_s: f64, signals: &RunSignals, end: usize) -> Vec<f64> {
-    let weights = [p.clbeta_per_rad, p.clp, p.clpdot, p.vortex_gain, p.bias];
+    let weights = [p.clbeta_per_rad, p.clp, p.clpdot, p.clpp, p.vortex_gain, p.bias];
     simulate_regressors(p, alpha_deg, dt_s, signals, end)
         .iter()
         .map(|row| row.iter().zip(&weights).map(|(x, w)| x * w).sum())

@@ -95,7 +95,7 @@ pub struct EgkReport {
     /// Optimiser termination.
     pub termination: String,
     /// Parameters: tau1, tau2, a*, k, kb, C_l,beta, C_l,p, C_l,pdot, K_v, C_l,0.
-    pub params: [f64; 10],
+    pub params: [f64; 11],
 }
 
 impl From<&EgkFit> for EgkReport {
@@ -116,6 +116,7 @@ impl From<&EgkFit> for EgkReport {
                 p.clbeta_per_rad,
                 p.clp,
                 p.clpdot,
+                p.clpp,
                 p.vortex_gain,
                 p.bias,
             ]

@@ -4,10 +4,13 @@
 
 use firmware_sim::effect::Effect;
 
-use super::{BalanceCandidate, Context, Drive, Params, Shape, difference, first_order_lag, gains, log_grid};
+use super::{
+    BalanceCandidate, Context, DampingLaw, Drive, Params, Shape, difference, first_order_lag, gains, log_grid,
+};
 use crate::diagnose::streams::RunStreams;
 
-/// `roll_damping`: `C_l,p p_hat`, one gain or one per angle of attack.
+/// `roll_damping`: a moment that grows with the roll rate, linear `C_l,p p_hat` or quadratic
+/// `C_l,p|p| p_hat |p_hat|`, one gain or one per angle of attack.
 #[derive(Debug, Clone, Copy)]
 pub struct RollDamping;
 
@@ -37,19 +40,26 @@ impl BalanceCandidate for RollDamping {
     }
 
     fn shapes(&self, _sample_hz: f64, _context: &Context<'_>) -> Vec<Shape> {
-        vec![Shape::Fixed]
+        [DampingLaw::Linear, DampingLaw::Quadratic].map(|law| Shape::Damping { law }).to_vec()
     }
 
     fn schedulable(&self) -> bool {
         true
     }
 
-    fn columns(&self, _shape: &Shape, run: &RunStreams, _run_idx: usize, context: &Context<'_>) -> Vec<Vec<f64>> {
-        vec![context.p_hat(run)]
+    fn columns(&self, shape: &Shape, run: &RunStreams, _run_idx: usize, context: &Context<'_>) -> Vec<Vec<f64>> {
+        let p_hat = context.p_hat(run);
+        match shape {
+            Shape::Damping { law: DampingLaw::Quadratic } => vec![p_hat.iter().map(|p| p * p.abs()).collect()],
+            _ => vec![p_hat],
+        }
     }
 
-    fn params(&self, _shape: &Shape, beta: &[f64], _context: &Context<'_>, _columns: &[Vec<Vec<f64>>]) -> Params {
-        gains(&["clp"], beta)
+    fn params(&self, shape: &Shape, beta: &[f64], _context: &Context<'_>, _columns: &[Vec<Vec<f64>>]) -> Params {
+        match shape {
+            Shape::Damping { law: DampingLaw::Quadratic } => gains(&["clpp"], beta),
+            _ => gains(&["clp"], beta),
+        }
     }
 }
 
@@ -270,6 +280,32 @@ mod tests {
         let beta = test_fit(&columns, &residual);
         let params = RollDamping.params(&Shape::Fixed, &beta, &context, &[]);
         assert!((params[0].1 + 0.05).abs() < 1e-9, "{params:?}");
+    }
+
+    /// A damping that grows with the rate squared is told from a linear one: of the two laws,
+    /// the quadratic leaves no residual and gives back its `C_l,p|p|`.
+    #[test]
+    fn roll_damping_family_tells_a_quadratic_law() {
+        let context = test_context();
+        let run = rolling_run(2000);
+        let residual: Vec<f64> = context.p_hat(&run).iter().map(|p| -0.8 * p * p.abs()).collect();
+        let fits: Vec<(f64, Shape, Vec<f64>)> = RollDamping
+            .shapes(run.sample_hz, &context)
+            .into_iter()
+            .map(|shape| {
+                let columns = RollDamping.columns(&shape, &run, 0, &context);
+                let beta = test_fit(&columns, &residual);
+                let sse: f64 = (0..run.len()).map(|i| (residual[i] - columns[0][i] * beta[0]).powi(2)).sum();
+                (sse, shape, beta)
+            })
+            .collect();
+        let best = fits.iter().min_by(|a, b| a.0.total_cmp(&b.0)).unwrap();
+        assert_eq!(best.1, Shape::Damping { law: DampingLaw::Quadratic });
+        let params = RollDamping.params(&best.1, &best.2, &context, &[]);
+        assert_eq!(params[0].0, "clpp");
+        assert!((params[0].1 + 0.8).abs() < 1e-9, "{params:?}");
+        let linear = fits.iter().find(|f| f.1 == Shape::Damping { law: DampingLaw::Linear }).unwrap();
+        assert!(linear.0 > 1e3 * best.0.max(1e-30), "the linear law leaves a residual");
     }
 
     /// Recalibration reports gains relative to one: a zero coefficient is the sim unchanged.

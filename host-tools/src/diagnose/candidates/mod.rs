@@ -128,6 +128,11 @@ pub enum Shape {
         /// Damping ratio.
         zeta: f64,
     },
+    /// A rate damping's law.
+    Damping {
+        /// How the moment grows with the rate.
+        law: DampingLaw,
+    },
     /// A smooth trend per run: powers of time up to `degree`.
     Trend {
         /// Highest power of time.
@@ -138,6 +143,28 @@ pub enum Shape {
         /// Spacing of the knots, s.
         knot_spacing_s: f64,
     },
+}
+
+/// How a rate damping grows with the reduced roll rate `p_hat`: the linear derivative, or the
+/// quadratic `p_hat |p_hat|` of separated, high-incidence flow (Elzebda, Nayfeh & Mook, J.
+/// Aircraft 26(8), 1989; domain-models.md section 2.5).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DampingLaw {
+    /// `C_l,p p_hat`.
+    Linear,
+    /// `C_l,p|p| p_hat |p_hat|`.
+    Quadratic,
+}
+
+impl DampingLaw {
+    /// The law's name in reports.
+    #[must_use]
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::Linear => "linear",
+            Self::Quadratic => "quadratic",
+        }
+    }
 }
 
 /// What drives a second flow state (one at a time: the lags of the sideslip and of the rate
@@ -200,7 +227,7 @@ impl Form {
     #[must_use]
     pub const fn n_profiled(&self) -> usize {
         match self.shape {
-            Shape::Fixed | Shape::Trend { .. } | Shape::Wander { .. } => 0,
+            Shape::Fixed | Shape::Damping { .. } | Shape::Trend { .. } | Shape::Wander { .. } => 0,
             Shape::Delay { .. } | Shape::Lag { .. } | Shape::SlowState { .. } => 1,
             Shape::Mode { .. } => 2,
         }
@@ -210,7 +237,7 @@ impl Form {
     #[must_use]
     pub const fn coordinate(&self) -> Option<(&'static str, f64)> {
         match self.shape {
-            Shape::Fixed => None,
+            Shape::Fixed | Shape::Damping { .. } => None,
             Shape::Delay { delay_s } => Some(("delay_s", delay_s)),
             Shape::Lag { tau_s } | Shape::SlowState { tau_s, .. } => Some(("tau_s", tau_s)),
             Shape::Mode { freq_hz, .. } => Some(("freq_hz", freq_hz)),
@@ -224,6 +251,7 @@ impl Form {
     pub fn entries(&self) -> Vec<(&'static str, FormValue)> {
         let mut out = match self.shape {
             Shape::Fixed => Vec::new(),
+            Shape::Damping { law } => vec![("law", FormValue::Choice(law.name()))],
             Shape::Delay { delay_s } => vec![("delay_s", FormValue::Number(delay_s))],
             Shape::Lag { tau_s } => vec![("tau_s", FormValue::Number(tau_s))],
             Shape::SlowState { tau_s, drive } => {
