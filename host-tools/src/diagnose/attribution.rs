@@ -541,6 +541,29 @@ mod tests {
         assert_eq!(alone.verdict(), Verdict::Effect);
     }
 
+    /// A fault of one channel is named only when it stands out from the other channels: by the
+    /// naming threshold and by at least the runner-up's own level. A deviation several taps share
+    /// alike (a dynamic-pressure fluctuation) names no channel; a lag finding is not held to it.
+    #[test]
+    fn a_one_channel_fault_must_stand_out_from_the_other_channels() {
+        let on = |channel: &str, removed: f64| SensorFinding {
+            channel: Some(channel.into()),
+            channels: vec![channel.into()],
+            ..sensor_finding(removed)
+        };
+        let floor = Signature::default();
+        let named = |findings: &[SensorFinding]| {
+            findings.iter().find(|f| SensorAttribution::stands_out(f, findings, &floor)).map(|f| f.channels[0].clone())
+        };
+        assert_eq!(named(&[on("cp05", 7.0), on("cp02", 0.5)]), Some("cp05".into()));
+        assert_eq!(named(&[on("cp05", 1.0), on("cp02", 0.5)]), Some("cp05".into()), "a lead equal to the runner-up");
+        assert_eq!(named(&[on("cp05", 0.99), on("cp02", 0.5)]), None);
+        assert_eq!(named(&[on("cp06", 2.9), on("cp04", 2.6), on("cp10", 2.4)]), None, "common to the taps");
+        assert_eq!(named(&[on("cp06", 0.3), on("cp04", 0.1)]), None, "a lead below the naming threshold");
+        let lag = SensorFinding { effect: firmware_sim::effect::Effect::PressureLag, ..on("cp06", 0.3) };
+        assert!(SensorAttribution::stands_out(&lag, &[lag.clone(), on("cp04", 2.6)], &floor));
+    }
+
     /// The structure probe on a residual that is white noise finds less than an effect of
     /// `MIN_EFFECT_TO_NOISE` (verdict `none`); on one holding a static cubic of the roll angle
     /// that no candidate spans (effect RMS several times the noise) it finds more

@@ -578,9 +578,32 @@ impl SensorAttribution {
         let named = findings
             .iter()
             .filter(|f| Self::excess_of(f, floor) >= min_ratio && f.delta_bic >= MIN_DELTA_BIC)
+            .filter(|f| Self::stands_out(f, &findings, floor))
             .max_by(|a, b| Self::excess_of(a, floor).total_cmp(&Self::excess_of(b, floor)))
             .cloned();
         Self { findings, named }
+    }
+
+    /// Whether a fault of one channel stands out from the other channels (any other finding
+    /// passes). The strongest fault finding on another channel measures what a channel shows
+    /// without a fault of its own here: a deviation common to the taps (a dynamic-pressure
+    /// fluctuation scales every Cp), or the pressure model's own error from recording to
+    /// recording. The contract's fault is of one channel, so the named one must lead that by at
+    /// least as much again, and by the naming threshold; a deviation several taps share alike is
+    /// not one channel's fault.
+    fn stands_out(finding: &SensorFinding, findings: &[SensorFinding], floor: &Signature) -> bool {
+        if finding.effect != firmware_sim::effect::Effect::PressureFault {
+            return true;
+        }
+        let runner_up = findings
+            .iter()
+            .filter(|other| {
+                other.effect == firmware_sim::effect::Effect::PressureFault && other.channels != finding.channels
+            })
+            .map(|other| Self::excess_of(other, floor).max(0.0))
+            .fold(0.0, f64::max);
+        let lead = Self::excess_of(finding, floor) - runner_up;
+        lead >= (MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE).max(runner_up)
     }
 
     fn excess_of(finding: &SensorFinding, floor: &Signature) -> f64 {
