@@ -300,46 +300,27 @@ pub fn part_gap(
     stuck_slope: f64,
     heldout: bool,
 ) -> regression::HeldoutGap {
-    let (mut before, mut after, mut n) = (0.0, 0.0, 0usize);
-    let mut differences = Vec::new();
+    let mut gap = regression::GapSums::default();
     for run in runs {
         let samples: Vec<usize> = if heldout { run.heldout.clone().collect() } else { run.select.samples().collect() };
         let usable = usable_samples(run, tap, &samples);
         let nu = &run.innovation[tap];
         let expected = expectation(run, tap);
         let found = best_interval_over(run, tap, shape, tau, &usable);
-        let inside: Vec<usize> =
-            usable.iter().copied().filter(|i| found.as_ref().is_some_and(|r| r.contains(i))).collect();
+        let inside = |i: &usize| found.as_ref().is_some_and(|range| range.contains(i));
         // The fault's column over the interval: a constant (bias), or a constant less the
         // expectation at the training part's slope (stuck); its level fitted here.
         let column = |i: usize| match shape {
             Shape::Bias => 0.0,
             Shape::Stuck => stuck_slope * expected[i],
         };
-        let level = mean_of(inside.iter().map(|&i| nu[i] - column(i)));
-        let mut last: Option<(usize, f64)> = None;
+        let level = mean_of(usable.iter().filter(|i| inside(i)).map(|&i| nu[i] - column(i)));
+        gap.next_run();
         for &i in &usable {
-            let r = nu[i];
-            let effect = if found.as_ref().is_some_and(|range| range.contains(&i)) { level + column(i) } else { 0.0 };
-            before += r * r;
-            after += (r - effect) * (r - effect);
-            n += 1;
-            if let Some((j, prev)) = last
-                && j + 1 == i
-            {
-                differences.push(r - prev);
-            }
-            last = Some((i, r));
+            gap.add(i, nu[i], if inside(&i) { level + column(i) } else { 0.0 });
         }
     }
-    let mean = |sum: f64, count: usize| if count == 0 { 0.0 } else { sum / count as f64 };
-    regression::HeldoutGap {
-        mse_before: mean(before, n),
-        mse_after: mean(after, n),
-        noise_var: regression::robust_difference_var(&mut differences),
-        n,
-        floor_var: 0.0,
-    }
+    gap.finish()
 }
 
 /// Segments of one channel's innovation (for the fit of the fault's columns).

@@ -254,39 +254,67 @@ fn gap_over(
     touched: &[bool],
     part: impl Fn(&Segment<'_>) -> Vec<usize>,
 ) -> HeldoutGap {
-    let (mut before, mut after, mut n) = (0.0, 0.0, 0usize);
-    let mut differences = Vec::new();
+    let mut gap = GapSums::default();
     for ((segment, cols), &is_touched) in segments.iter().zip(columns).zip(touched) {
         if !is_touched {
             continue;
         }
-        let mut last: Option<(usize, f64)> = None;
+        gap.next_run();
         for i in part(segment) {
-            let r = segment.residual[i];
-            if !r.is_finite() {
-                last = None;
-                continue;
-            }
             let effect: f64 = cols.iter().zip(beta).map(|(col, b)| b * col[i]).sum();
-            before += r * r;
-            after += (r - effect) * (r - effect);
-            n += 1;
-            // Differences only of neighbours (not across the gap between two selection blocks).
-            if let Some((j, prev)) = last
-                && j + 1 == i
-            {
-                differences.push(r - prev);
-            }
-            last = Some((i, r));
+            gap.add(i, segment.residual[i], effect);
         }
     }
-    let mean = |sum: f64, count: usize| if count == 0 { 0.0 } else { sum / count as f64 };
-    HeldoutGap {
-        mse_before: mean(before, n),
-        mse_after: mean(after, n),
-        noise_var: robust_difference_var(&mut differences),
-        n,
-        floor_var: 0.0,
+    gap.finish()
+}
+
+/// A part's gap, accumulated sample by sample over its runs: the residual's mean square before
+/// and after an effect, and the noise from the differences of neighbouring samples.
+#[derive(Debug, Default)]
+pub struct GapSums {
+    before: f64,
+    after: f64,
+    n: usize,
+    differences: Vec<f64>,
+    last: Option<(usize, f64)>,
+}
+
+impl GapSums {
+    /// A new run starts (no difference across runs).
+    pub fn next_run(&mut self) {
+        self.last = None;
+    }
+
+    /// Sample `idx` of the current run: residual `r` (a non-finite one is skipped and breaks
+    /// the neighbours) and the effect's prediction of it.
+    pub fn add(&mut self, idx: usize, r: f64, effect: f64) {
+        if !r.is_finite() {
+            self.last = None;
+            return;
+        }
+        self.before += r * r;
+        self.after += (r - effect) * (r - effect);
+        self.n += 1;
+        // Differences only of neighbours (not across the gap between two selection blocks).
+        if let Some((j, prev)) = self.last
+            && j + 1 == idx
+        {
+            self.differences.push(r - prev);
+        }
+        self.last = Some((idx, r));
+    }
+
+    /// The gap (no floor).
+    #[must_use]
+    pub fn finish(mut self) -> HeldoutGap {
+        let mean = |sum: f64, count: usize| if count == 0 { 0.0 } else { sum / count as f64 };
+        HeldoutGap {
+            mse_before: mean(self.before, self.n),
+            mse_after: mean(self.after, self.n),
+            noise_var: robust_difference_var(&mut self.differences),
+            n: self.n,
+            floor_var: 0.0,
+        }
     }
 }
 

@@ -304,6 +304,9 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
         let (repeat_s, repeat_start_s) = longest_constant_run(runs, tap);
         let start_s = onset_s(&stuck);
         let k = fit.beta.len() + runs_with(&stuck);
+        // The shared slope on the expectation (checked above); the parts find their own intervals.
+        let slope = fit.beta.first().copied().unwrap_or(0.0);
+        let part_gap = |heldout: bool| faults::part_gap(runs, tap, faults::Shape::Stuck, tau, slope, heldout);
         shapes.push(SensorFinding {
             effect: Effect::PressureFault,
             params: vec![
@@ -317,22 +320,8 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
             explained: fit.explained_per_sample(),
             noise_var,
             delta_bic: delta_bic(&fit, tau, k),
-            heldout: faults::part_gap(
-                runs,
-                tap,
-                faults::Shape::Stuck,
-                tau,
-                fit.beta.first().copied().unwrap_or(0.0),
-                true,
-            ),
-            selection: faults::part_gap(
-                runs,
-                tap,
-                faults::Shape::Stuck,
-                tau,
-                fit.beta.first().copied().unwrap_or(0.0),
-                false,
-            ),
+            heldout: part_gap(true),
+            selection: part_gap(false),
             evidence: if repeat_s >= STUCK_MIN_S {
                 format!("{name} repeats one reading for {repeat_s:.2} s from t = {repeat_start_s:.2} s")
             } else {
