@@ -5,7 +5,7 @@
 use firmware_sim::effect::Effect;
 
 use super::{
-    BalanceCandidate, Context, DampingLaw, Drive, Params, Shape, difference, first_order_lag, gains, log_grid,
+    BalanceCandidate, Context, DampingLaw, Drive, Params, Shape, SlowLaw, difference, first_order_lag, gains, log_grid,
 };
 use crate::diagnose::streams::RunStreams;
 
@@ -78,16 +78,20 @@ impl BalanceCandidate for VortexLag {
         log_grid(0.03, 5.0, 30)
             .into_iter()
             .filter(|tau_s| *tau_s >= context.slow_tau_min_s)
-            .flat_map(|tau_s| [Drive::Sideslip, Drive::RollRate].map(|drive| Shape::SlowState { tau_s, drive }))
+            .flat_map(|tau_s| {
+                [Drive::Sideslip, Drive::RollRate].into_iter().flat_map(move |drive| {
+                    [SlowLaw::State, SlowLaw::Deficit].map(move |law| Shape::SlowState { tau_s, drive, law })
+                })
+            })
             .collect()
     }
 
     /// A second, slower flow state (gap-diagnosis.md sections 2.9 and 4.2, G9), in the forms a
     /// rig can have: a share of the eGK's response through the slower state
     /// (`LP_tau[C_l,eGK] - C_l,eGK`), and a new state driven by one of the disturbance's physical
-    /// inputs, `LP_tau[u]`.
+    /// inputs, acting as itself, `LP_tau[u]`, or as its deficit, `LP_tau[u] - u`.
     fn columns(&self, shape: &Shape, run: &RunStreams, _run_idx: usize, context: &Context<'_>) -> Vec<Vec<f64>> {
-        let Shape::SlowState { tau_s, drive } = *shape else { return Vec::new() };
+        let Shape::SlowState { tau_s, drive, law } = *shape else { return Vec::new() };
         let dt_s = 1.0 / run.sample_hz;
         let input: Vec<f64> = match drive {
             Drive::RollRate => context.p_hat(run),
@@ -96,7 +100,12 @@ impl BalanceCandidate for VortexLag {
                 run.phi_rad.iter().map(|phi| (alpha.sin() * phi.sin()).asin()).collect()
             }
         };
-        vec![difference(&first_order_lag(&run.cl_egk, tau_s, dt_s), &run.cl_egk), first_order_lag(&input, tau_s, dt_s)]
+        let state = first_order_lag(&input, tau_s, dt_s);
+        let own = match law {
+            SlowLaw::State => state,
+            SlowLaw::Deficit => difference(&state, &input),
+        };
+        vec![difference(&first_order_lag(&run.cl_egk, tau_s, dt_s), &run.cl_egk), own]
     }
 
     fn params(&self, shape: &Shape, beta: &[f64], _context: &Context<'_>, _columns: &[Vec<Vec<f64>>]) -> Params {
@@ -246,12 +255,39 @@ mod tests {
             })
             .min_by(|a, b| a.0.total_cmp(&b.0))
             .unwrap();
-        let Shape::SlowState { tau_s, drive } = best.1 else { unreachable!() };
-        assert_eq!(drive, Drive::Sideslip);
+        let Shape::SlowState { tau_s, drive, law } = best.1 else { unreachable!() };
+        assert_eq!((drive, law), (Drive::Sideslip, SlowLaw::State));
         assert!((tau_s / 0.8).ln().abs() < (5.0f64 / 0.03).ln() / 29.0, "tau {tau_s}");
         let params = VortexLag.params(&best.1, &best.2, &context, &[]);
         assert_eq!(params[1].0, "per_rad_sideslip");
         assert!((params[1].1 - 0.02).abs() < 0.004, "{params:?}");
+    }
+
+    /// A state driven by the rate that acts as its deficit, `0.5 (LP_0.6s[p_hat] - p_hat)`, is
+    /// found in the deficit law with the rate drive (the state law would need the rate itself,
+    /// which is roll damping's column, not this family's).
+    #[test]
+    fn vortex_lag_profile_tells_a_deficit_from_a_state() {
+        let context = test_context();
+        let run = rolling_run(6000);
+        let p_hat = context.p_hat(&run);
+        let lagged = first_order_lag(&p_hat, 0.6, 1.0 / run.sample_hz);
+        let truth: Vec<f64> = lagged.iter().zip(&p_hat).map(|(x, u)| 0.5 * (x - u)).collect();
+        let best = VortexLag
+            .shapes(run.sample_hz, &context)
+            .into_iter()
+            .map(|shape| {
+                let columns = VortexLag.columns(&shape, &run, 0, &context);
+                let coef = test_fit(&columns, &truth);
+                let sse: f64 = (0..run.len())
+                    .map(|i| (truth[i] - columns.iter().zip(&coef).map(|(c, b)| c[i] * b).sum::<f64>()).powi(2))
+                    .sum();
+                (sse, shape)
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .unwrap();
+        let Shape::SlowState { drive, law, .. } = best.1 else { unreachable!() };
+        assert_eq!((drive, law), (Drive::RollRate, SlowLaw::Deficit));
     }
 
     /// Without blowing every coupling column is zero (the interaction needs both); with a

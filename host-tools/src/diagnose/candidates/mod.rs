@@ -120,6 +120,8 @@ pub enum Shape {
         tau_s: f64,
         /// The physical input driving the new state.
         drive: Drive,
+        /// Whether the moment is the state or its deficit from the quasi-steady input.
+        law: SlowLaw,
     },
     /// A second-order structural mode.
     Mode {
@@ -163,6 +165,28 @@ impl DampingLaw {
         match self {
             Self::Linear => "linear",
             Self::Quadratic => "quadratic",
+        }
+    }
+}
+
+/// How a second flow state `x` (`tau x' + x = u`) acts on the moment: as itself, `K x`, or
+/// as its deficit from the quasi-steady value of its drive, `K (x - u)` (the flow lags what the
+/// motion would give at rest: a moment that vanishes in steady motion).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SlowLaw {
+    /// `K x`.
+    State,
+    /// `K (x - u)`.
+    Deficit,
+}
+
+impl SlowLaw {
+    /// The law's name in reports.
+    #[must_use]
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::State => "state",
+            Self::Deficit => "deficit",
         }
     }
 }
@@ -254,9 +278,11 @@ impl Form {
             Shape::Damping { law } => vec![("law", FormValue::Choice(law.name()))],
             Shape::Delay { delay_s } => vec![("delay_s", FormValue::Number(delay_s))],
             Shape::Lag { tau_s } => vec![("tau_s", FormValue::Number(tau_s))],
-            Shape::SlowState { tau_s, drive } => {
-                vec![("tau_s", FormValue::Number(tau_s)), ("drive", FormValue::Choice(drive.name()))]
-            }
+            Shape::SlowState { tau_s, drive, law } => vec![
+                ("tau_s", FormValue::Number(tau_s)),
+                ("drive", FormValue::Choice(drive.name())),
+                ("law", FormValue::Choice(law.name())),
+            ],
             Shape::Mode { freq_hz, zeta } => {
                 vec![("freq_hz", FormValue::Number(freq_hz)), ("zeta", FormValue::Number(zeta))]
             }
@@ -540,11 +566,15 @@ mod tests {
 
     #[test]
     fn form_entries_name_every_parameter_and_count_the_profiled_ones() {
-        let form = Form { shape: Shape::SlowState { tau_s: 0.5, drive: Drive::RollRate }, per_alpha: true };
+        let form = Form {
+            shape: Shape::SlowState { tau_s: 0.5, drive: Drive::RollRate, law: SlowLaw::State },
+            per_alpha: true,
+        };
         let entries = form.entries();
         assert_eq!(entries[0], ("tau_s", FormValue::Number(0.5)));
         assert_eq!(entries[1], ("drive", FormValue::Choice("roll_rate")));
-        assert_eq!(entries[2], ("per_alpha", FormValue::Flag(true)));
+        assert_eq!(entries[2], ("law", FormValue::Choice("state")));
+        assert_eq!(entries[3], ("per_alpha", FormValue::Flag(true)));
         assert_eq!(form.n_profiled(), 1);
         assert_eq!(Form { shape: Shape::Mode { freq_hz: 9.0, zeta: 0.02 }, per_alpha: false }.n_profiled(), 2);
         assert_eq!(Form { shape: Shape::Wander { knot_spacing_s: 2.0 }, per_alpha: false }.n_profiled(), 0);
