@@ -214,6 +214,24 @@ mod tests {
         run
     }
 
+    /// The vortex-lag form that fits `truth` best by least squares: its residual sum of
+    /// squares, shape and coefficients.
+    fn best_vortex_form(run: &RunStreams, truth: &[f64], context: &Context<'_>) -> (f64, Shape, Vec<f64>) {
+        VortexLag
+            .shapes(run.sample_hz, context)
+            .into_iter()
+            .map(|shape| {
+                let columns = VortexLag.columns(&shape, run, 0, context);
+                let coef = test_fit(&columns, truth);
+                let sse: f64 = (0..run.len())
+                    .map(|i| (truth[i] - columns.iter().zip(&coef).map(|(c, b)| c[i] * b).sum::<f64>()).powi(2))
+                    .sum();
+                (sse, shape, coef)
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .expect("the family has forms")
+    }
+
     /// Every vortex-lag form is slower than the context's floor and at most 5 s, and each time
     /// constant comes with both drives.
     #[test]
@@ -242,19 +260,7 @@ mod tests {
         let alpha = 20f64.to_radians();
         let beta: Vec<f64> = run.phi_rad.iter().map(|phi| (alpha.sin() * phi.sin()).asin()).collect();
         let truth: Vec<f64> = first_order_lag(&beta, 0.8, 1.0 / run.sample_hz).iter().map(|b| 0.02 * b).collect();
-        let best = VortexLag
-            .shapes(run.sample_hz, &context)
-            .into_iter()
-            .map(|shape| {
-                let columns = VortexLag.columns(&shape, &run, 0, &context);
-                let coef = test_fit(&columns, &truth);
-                let sse: f64 = (0..run.len())
-                    .map(|i| (truth[i] - columns.iter().zip(&coef).map(|(c, b)| c[i] * b).sum::<f64>()).powi(2))
-                    .sum();
-                (sse, shape, coef)
-            })
-            .min_by(|a, b| a.0.total_cmp(&b.0))
-            .unwrap();
+        let best = best_vortex_form(&run, &truth, &context);
         let Shape::SlowState { tau_s, drive, law } = best.1 else { unreachable!() };
         assert_eq!((drive, law), (Drive::Sideslip, SlowLaw::State));
         assert!((tau_s / 0.8).ln().abs() < (5.0f64 / 0.03).ln() / 29.0, "tau {tau_s}");
@@ -273,19 +279,7 @@ mod tests {
         let p_hat = context.p_hat(&run);
         let lagged = first_order_lag(&p_hat, 0.6, 1.0 / run.sample_hz);
         let truth: Vec<f64> = lagged.iter().zip(&p_hat).map(|(x, u)| 0.5 * (x - u)).collect();
-        let best = VortexLag
-            .shapes(run.sample_hz, &context)
-            .into_iter()
-            .map(|shape| {
-                let columns = VortexLag.columns(&shape, &run, 0, &context);
-                let coef = test_fit(&columns, &truth);
-                let sse: f64 = (0..run.len())
-                    .map(|i| (truth[i] - columns.iter().zip(&coef).map(|(c, b)| c[i] * b).sum::<f64>()).powi(2))
-                    .sum();
-                (sse, shape)
-            })
-            .min_by(|a, b| a.0.total_cmp(&b.0))
-            .unwrap();
+        let best = best_vortex_form(&run, &truth, &context);
         let Shape::SlowState { drive, law, .. } = best.1 else { unreachable!() };
         assert_eq!((drive, law), (Drive::RollRate, SlowLaw::Deficit));
     }
