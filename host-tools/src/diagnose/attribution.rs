@@ -217,8 +217,8 @@ mod tests {
     use crate::diagnose::sensor::{ParamValue, SensorFinding};
     use crate::diagnose::streams::synthetic_run;
     use crate::diagnose::{
-        BalanceAttribution, Decision, MIN_DELTA_BIC, MIN_EFFECT_TO_NOISE, ProbeResult, SensorAttribution, Signature,
-        Streams,
+        BalanceAttribution, Decision, GapSummary, MIN_DELTA_BIC, MIN_EFFECT_TO_NOISE, ProbeResult, SensorAttribution,
+        Signature, Streams,
     };
 
     const HZ: f64 = 1000.0;
@@ -307,8 +307,18 @@ mod tests {
         SensorAttribution { findings: Vec::new(), named: None }
     }
 
+    /// A gap summary with nothing beyond the sim's own scatter, or everything.
+    fn gaps(beyond_scatter: bool) -> GapSummary {
+        GapSummary {
+            heldout: HeldoutGap { mse_before: 0.0, mse_after: 0.0, noise_var: 0.0, n: 0, floor_var: 0.0 },
+            by_kind: BTreeMap::new(),
+            excess_runs: Vec::new(),
+            beyond_scatter,
+        }
+    }
+
     fn decide(balance: &BalanceAttribution, probe: &ProbeResult, sensor: &SensorAttribution) -> Decision {
-        Decision::make(&streams(Vec::new(), 1.0), balance, probe, sensor, &Signature::default())
+        Decision::make(&streams(Vec::new(), 1.0), balance, probe, sensor, &gaps(false), &Signature::default())
     }
 
     /// The Legendre polynomials against their closed forms (degrees 0 to 5) and `P_n(1) = 1`,
@@ -576,10 +586,36 @@ mod tests {
         let white = streams(vec![rolling(5, noise_std, |_, _, n| n)], noise_std * noise_std);
         let found = ProbeResult::run(&white, &empty, &floor);
         assert!(found.structure < MIN_RATIO, "{}", found.structure);
-        assert!(matches!(Decision::make(&white, &empty, &found, &no_sensor(), &floor), Decision::None));
+        let white_gaps = GapSummary::run(&white, &floor);
+        assert!(!white_gaps.beyond_scatter);
+        assert!(matches!(Decision::make(&white, &empty, &found, &no_sensor(), &white_gaps, &floor), Decision::None));
         let cubic = streams(vec![rolling(6, noise_std, |_, phi, n| 0.05 * phi.powi(3) + n)], noise_std * noise_std);
         let found = ProbeResult::run(&cubic, &empty, &floor);
         assert!(found.structure >= MIN_RATIO, "{}", found.structure);
-        assert!(matches!(Decision::make(&cubic, &empty, &found, &no_sensor(), &floor), Decision::Unattributed));
+        let cubic_gaps = GapSummary::run(&cubic, &floor);
+        assert!(matches!(
+            Decision::make(&cubic, &empty, &found, &no_sensor(), &cubic_gaps, &floor),
+            Decision::Unattributed
+        ));
+    }
+
+    /// A gap that nothing predicts (the probe finds nothing, no candidate qualifies) is
+    /// unattributed when it lies beyond the sim's own scatter, and `none` otherwise.
+    #[test]
+    fn an_unpredictable_gap_beyond_the_sims_scatter_is_unattributed() {
+        let empty = balance(Vec::new(), Vec::new());
+        let nothing = probe(0.0, false);
+        let make = |beyond| {
+            Decision::make(
+                &streams(Vec::new(), 1.0),
+                &empty,
+                &nothing,
+                &no_sensor(),
+                &gaps(beyond),
+                &Signature::default(),
+            )
+        };
+        assert!(matches!(make(false), Decision::None));
+        assert!(matches!(make(true), Decision::Unattributed));
     }
 }

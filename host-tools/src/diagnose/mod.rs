@@ -213,7 +213,7 @@ pub fn diagnose(
     let probe = ProbeResult::run(&streams, &balance, &floor);
     let sensor = SensorAttribution::run(&streams, &floor);
     let gaps = GapSummary::run(&streams, &floor);
-    let decision = Decision::make(&streams, &balance, &probe, &sensor, &floor);
+    let decision = Decision::make(&streams, &balance, &probe, &sensor, &gaps, &floor);
 
     let context = streams.context();
     let own_signature = Signature {
@@ -625,6 +625,9 @@ pub struct GapSummary {
     pub by_kind: BTreeMap<String, f64>,
     /// Runs whose selection-part gap exceeds the sim's own by a significant margin.
     pub excess_runs: Vec<usize>,
+    /// The selection-part gap of all runs together lies beyond the sim's own scatter from
+    /// recording to recording ([`GapSummary::beyond_scatter`]).
+    pub beyond_scatter: bool,
 }
 
 impl GapSummary {
@@ -655,6 +658,7 @@ impl GapSummary {
         // outside the scatter of both mean squares (the floor's taken as equally uncertain
         // relative to its size).
         let min_ratio = MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE;
+        let mut pooled = PooledGap::default();
         let excess_runs = (0..runs.len())
             .filter(|&idx| {
                 let floor_gap = floor.gap_of(runs[idx].kind.as_str(), runs[idx].alpha_deg);
@@ -669,10 +673,56 @@ impl GapSummary {
                 let standard_error = streams.to_noise(regression::mean_square_standard_error(&select));
                 let relative_floor = (floor_gap + 1.0) / (run_gaps[idx].0 + 1.0).max(f64::MIN_POSITIVE);
                 let scatter = standard_error * (1.0 + relative_floor * relative_floor).sqrt();
+                pooled.add(run_gaps[idx].0, floor_gap, scatter, run_gaps[idx].1);
                 excess >= min_ratio && excess >= GAP_SIGNIFICANCE_Z * scatter
             })
             .collect();
-        Self { heldout, by_kind, excess_runs }
+        Self { heldout, by_kind, excess_runs, beyond_scatter: pooled.beyond_scatter() }
+    }
+}
+
+/// The selection-part gap of all runs together against the sim's own, weighted by samples.
+#[derive(Debug, Default, Clone, Copy)]
+struct PooledGap {
+    /// Sum of samples times the gap, in noise variances.
+    gap: f64,
+    /// Sum of samples times the sim's own gap.
+    floor: f64,
+    /// Sum of the squares of samples times the scatter of the excess.
+    scatter_sq: f64,
+    /// Samples.
+    n: f64,
+}
+
+impl PooledGap {
+    fn add(&mut self, gap_to_noise: f64, floor_to_noise: f64, scatter: f64, n: usize) {
+        if !(gap_to_noise.is_finite() && floor_to_noise.is_finite() && scatter.is_finite()) || n == 0 {
+            return;
+        }
+        let n = n as f64;
+        self.gap += n * gap_to_noise;
+        self.floor += n * floor_to_noise;
+        self.scatter_sq += (n * scatter).powi(2);
+        self.n += n;
+    }
+
+    /// Whether the gap is a real gap even though nothing predicts it. The sim's own structural
+    /// error is measured on one recording, the fit's; on other inputs (another excitation,
+    /// another rate of roll) its mean square is not bounded by that, and may well be as large
+    /// again. So the excess over the sim's own gap must be at least the sim's own gap (the
+    /// floor taken as known within a factor of two) and the naming threshold, and significant
+    /// by [`GAP_SIGNIFICANCE_Z`] standard errors. A gap this far beyond the sim is not its
+    /// scatter from recording to recording, whether or not any candidate or probe predicts it
+    /// (a random modulation, such as a fluctuating dynamic pressure, predicts nothing out of
+    /// sample).
+    fn beyond_scatter(&self) -> bool {
+        if self.n <= 0.0 {
+            return false;
+        }
+        let excess = (self.gap - self.floor) / self.n;
+        let floor = self.floor / self.n;
+        let scatter = self.scatter_sq.sqrt() / self.n;
+        excess >= (MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE).max(floor) && excess >= GAP_SIGNIFICANCE_Z * scatter
     }
 }
 
@@ -699,6 +749,7 @@ impl Decision {
         balance: &BalanceAttribution,
         probe: &ProbeResult,
         sensor: &SensorAttribution,
+        gaps: &GapSummary,
         floor: &Signature,
     ) -> Self {
         let balance_strength = balance.strength(streams, floor);
@@ -715,7 +766,7 @@ impl Decision {
         // predicts is its scatter from recording to recording (the runs are still listed).
         let min_ratio = MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE;
         let best = balance.first_round.first().map_or(0.0, |p| balance.excess(p, streams, floor));
-        if probe.structure.max(best) >= min_ratio { Self::Unattributed } else { Self::None }
+        if probe.structure.max(best) >= min_ratio || gaps.beyond_scatter { Self::Unattributed } else { Self::None }
     }
 
     fn verdict(&self) -> Verdict {
@@ -904,4 +955,36 @@ fn confounding(
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{MIN_EFFECT_TO_NOISE, PooledGap};
+
+    fn pooled(runs: &[(f64, f64, f64)]) -> bool {
+        let mut pooled = PooledGap::default();
+        for &(gap, floor, scatter) in runs {
+            pooled.add(gap, floor, scatter, 1000);
+        }
+        pooled.beyond_scatter()
+    }
+
+    /// The excess must reach the sim's own gap (or the naming threshold, when that is larger)
+    /// and two standard errors, pooled over the runs by samples; non-finite runs are left out.
+    #[test]
+    fn a_gap_is_beyond_the_sims_scatter_at_twice_its_own_gap_and_two_standard_errors() {
+        let min = MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE;
+        // Twice the sim's own gap, tiny scatter: beyond; a hair less: not.
+        assert!(pooled(&[(2.0, 1.0, 0.01), (2.0, 1.0, 0.01)]));
+        assert!(!pooled(&[(2.0 - 1e-9, 1.0, 0.01), (2.0, 1.0, 0.01)]));
+        // A small floor: the naming threshold decides.
+        assert!(pooled(&[(0.1 + min, 0.1, 0.01)]));
+        assert!(!pooled(&[(0.1 + min - 1e-9, 0.1, 0.01)]));
+        // Large enough but not significant: two runs of scatter s pool to s / sqrt(2).
+        assert!(!pooled(&[(3.0, 1.0, 1.5), (3.0, 1.0, 1.5)]));
+        assert!(pooled(&[(3.0, 1.0, 1.4), (3.0, 1.0, 1.4)]));
+        // A run without a figure counts for nothing; no runs at all is no gap.
+        assert!(pooled(&[(3.0, 1.0, 0.1), (f64::NAN, 1.0, 0.1)]));
+        assert!(!pooled(&[]));
+    }
 }
