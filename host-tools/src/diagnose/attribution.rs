@@ -485,6 +485,30 @@ mod tests {
         assert!(!stage.qualifies(&profiled(&InertialTare, MIN_RATIO, MIN_DELTA_BIC - 1e-9), &streams, &floor));
     }
 
+    /// The naming threshold counts the sim's own gap on the touched runs as noise: a gap of one
+    /// noise variance on the one roll run at 20 deg doubles it there; a run at an angle the
+    /// signature lacks takes its kind's figure; untouched runs and no runs leave it at the
+    /// white noise's.
+    #[test]
+    fn the_naming_threshold_counts_the_sims_own_gap_on_the_touched_runs() {
+        let mut at_20 = rolling(1, 1.0, |_, _, n| n);
+        at_20.kind = firmware_sim::dataset::RunKind::Roll;
+        at_20.alpha_deg = 20.0;
+        let mut at_30 = at_20.clone();
+        at_30.alpha_deg = 30.0;
+        let streams = streams(vec![at_20, at_30], 1.0);
+        let floor = Signature {
+            gap_to_noise_by_kind: [("roll@20".to_owned(), 1.0), ("roll".to_owned(), 3.0)].into_iter().collect(),
+            ..Signature::default()
+        };
+        let threshold = |touched: &[bool]| crate::diagnose::naming_threshold(&streams, touched, &floor);
+        assert_eq!(threshold(&[true, false]), 2.0 * MIN_RATIO);
+        assert_eq!(threshold(&[false, true]), 4.0 * MIN_RATIO);
+        assert_eq!(threshold(&[true, true]), 3.0 * MIN_RATIO);
+        assert_eq!(threshold(&[false, false]), MIN_RATIO);
+        assert_eq!(crate::diagnose::naming_threshold(&streams, &[true, true], &Signature::default()), MIN_RATIO);
+    }
+
     /// The excess is counted beyond the sim's own signature for that candidate (0.75 removed
     /// over a floor of 0.5 is exactly the threshold; a hair more floor and it fails), in noise
     /// variances of the balance stream; a negative floor sets none.

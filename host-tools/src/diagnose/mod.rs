@@ -502,13 +502,32 @@ impl BalanceAttribution {
     /// [`MIN_EFFECT_TO_NOISE`] of the noise, out of sample, beyond the signature.
     fn qualifies(&self, profiled: &Profiled, streams: &Streams, floor: &Signature) -> bool {
         profiled.delta_bic >= MIN_DELTA_BIC
-            && self.excess(profiled, streams, floor) >= MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE
+            && self.excess(profiled, streams, floor) >= naming_threshold(streams, &profiled.fit.touched, floor)
     }
 
     /// The strength of the leading named effect (0 without one).
     fn strength(&self, streams: &Streams, floor: &Signature) -> f64 {
         self.named.first().map_or(0.0, |p| self.excess(p, streams, floor))
     }
+}
+
+/// The least a balance effect must explain beyond the signature to be named, in noise
+/// variances: an effect of [`MIN_EFFECT_TO_NOISE`] of what the stream shows where nothing is
+/// wrong, on the runs it acts on. That is the white noise plus the sim's own gap on data it
+/// matches (the signature's, per kind of run and angle of attack): a balance's coloured noise
+/// (vibration, drift of the electronics) and the model's own structural error are noise to
+/// this question as much as the white part is, and a candidate fitted on a new recording
+/// picks up part of them (on another excitation the structural error no longer lies outside
+/// the fitted terms, as it does on the fit's own recording).
+fn naming_threshold(streams: &Streams, touched: &[bool], floor: &Signature) -> f64 {
+    let (mut sum, mut n) = (0.0, 0.0);
+    for (run, _) in streams.runs.iter().zip(touched).filter(|(_, touched)| **touched) {
+        let weight = run.len() as f64;
+        sum += weight * floor.gap_of(run.kind.as_str(), run.alpha_deg).max(0.0);
+        n += weight;
+    }
+    let own_gap = if n > 0.0 { sum / n } else { 0.0 };
+    MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE * (1.0 + own_gap)
 }
 
 /// Stage 3: the structure probe, fitted on the training part and measured on the selection
@@ -762,11 +781,17 @@ impl Decision {
             return if probe.remainder_structured { Self::Unattributed } else { Self::Balance };
         }
         // Nothing named: a gap is unattributed only where something predicts at least an effect
-        // of half the noise RMS of it out of sample; a larger gap than the sim's own that nothing
-        // predicts is its scatter from recording to recording (the runs are still listed).
-        let min_ratio = MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE;
-        let best = balance.first_round.first().map_or(0.0, |p| balance.excess(p, streams, floor));
-        if probe.structure.max(best) >= min_ratio || gaps.beyond_scatter { Self::Unattributed } else { Self::None }
+        // of half the noise RMS of it out of sample (the noise as the naming threshold counts it:
+        // white, plus the sim's own gap on the runs concerned), or where it lies beyond the sim's
+        // own scatter; a smaller gap than that which nothing predicts is the sim's scatter from
+        // recording to recording (the runs are still listed).
+        let all_runs = vec![true; streams.runs.len()];
+        let predicted = probe.structure >= naming_threshold(streams, &all_runs, floor)
+            || balance
+                .first_round
+                .first()
+                .is_some_and(|p| balance.excess(p, streams, floor) >= naming_threshold(streams, &p.fit.touched, floor));
+        if predicted || gaps.beyond_scatter { Self::Unattributed } else { Self::None }
     }
 
     fn verdict(&self) -> Verdict {
