@@ -18,7 +18,7 @@ use firmware_sim::dataset::{Dataset, Run, RunKind};
 
 use super::regression::Interleave;
 use crate::fit::pressure::{PressureFilterF64, PressureModelF64};
-use crate::fit::signals::{differentiate, hold_missing, zero_phase_lowpass};
+use crate::fit::signals::{differentiate, hold_missing, zero_phase_lowpass_extended};
 use crate::fit::split::Split;
 use crate::replay::input_at;
 
@@ -177,7 +177,7 @@ fn build_run(run: &Run, set: &CoefficientSet, split: &Split) -> RunStreams {
         .collect();
 
     let phi_rad: Vec<f64> = hold_missing(&run.channels.phi_deg, 0.0).iter().map(|phi| phi.to_radians()).collect();
-    let smooth_phi = zero_phase_lowpass(&phi_rad, KINEMATICS_CORNER_HZ.min(0.4 * sample_hz), sample_hz);
+    let smooth_phi = zero_phase_lowpass_extended(&phi_rad, KINEMATICS_CORNER_HZ.min(0.4 * sample_hz), sample_hz);
     let phi_dot_rad_s = central_difference(&smooth_phi, dt_s);
     let phi_ddot_rad_s2 = central_difference(&phi_dot_rad_s, dt_s);
     let cmu = [hold_missing(&run.channels.cmu_port, 0.0), hold_missing(&run.channels.cmu_stbd, 0.0)]
@@ -188,7 +188,7 @@ fn build_run(run: &Run, set: &CoefficientSet, split: &Split) -> RunStreams {
     let cp_dot = cp
         .iter()
         .map(|channel| {
-            let smooth = zero_phase_lowpass(channel, PRESSURE_CORNER_HZ.min(0.4 * sample_hz), sample_hz);
+            let smooth = zero_phase_lowpass_extended(channel, PRESSURE_CORNER_HZ.min(0.4 * sample_hz), sample_hz);
             let mut derivative = central_difference(&smooth, dt_s);
             for (value, raw) in derivative.iter_mut().zip(channel) {
                 if !raw.is_finite() {

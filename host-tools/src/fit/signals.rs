@@ -121,6 +121,33 @@ pub fn zero_phase_lowpass(values: &[f64], corner_hz: f64, sample_hz: f64) -> Vec
     backward
 }
 
+/// [`zero_phase_lowpass`] with the ends extended by odd reflection (`2 x_0 - x_k`, as SciPy's
+/// `filtfilt` with `padtype="odd"`), so that a signal still moving at an end keeps its value
+/// and its slope there. For signals that are differentiated: started at rest, each pass flattens
+/// a moving signal at its edges, and the second derivative of a roll angle still rolling at a
+/// run's end came out five to eight times its RMS over the last 0.1 s (a 40 Hz corner); a lightly
+/// damped resonator driven by it then rang through the held-out part.
+#[must_use]
+pub fn zero_phase_lowpass_extended(values: &[f64], corner_hz: f64, sample_hz: f64) -> Vec<f64> {
+    let n = values.len();
+    if n < 2 {
+        return zero_phase_lowpass(values, corner_hz, sample_hz);
+    }
+    let held = hold_missing(values, values.iter().copied().find(|v| v.is_finite()).unwrap_or(0.0));
+    // Twenty radians of the corner: the start-up transient (damping ratio 0.71) has decayed to
+    // below 1e-6 of itself by then.
+    let pad = ((20.0 * sample_hz / (std::f64::consts::TAU * corner_hz.max(f64::MIN_POSITIVE))).ceil() as usize)
+        .clamp(1, n - 1);
+    let (first, last) = (held[0], held[n - 1]);
+    let extended: Vec<f64> = (1..=pad)
+        .rev()
+        .map(|k| 2.0 * first - held[k])
+        .chain(held.iter().copied())
+        .chain((1..=pad).map(|k| 2.0 * last - held[n - 1 - k]))
+        .collect();
+    zero_phase_lowpass(&extended, corner_hz, sample_hz)[pad..pad + n].to_vec()
+}
+
 /// Coefficients of a second-order Butterworth low-pass at `corner_hz`.
 fn butterworth2(corner_hz: f64, sample_hz: f64) -> ([f64; 3], [f64; 3]) {
     let warped = (std::f64::consts::PI * corner_hz / sample_hz).tan();
@@ -151,6 +178,20 @@ fn biquad(values: &[f64], b: &[f64; 3], a: &[f64; 3]) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_extended_lowpass_keeps_a_ramps_slope_at_both_ends() {
+        // A ramp through the whole record: its second derivative is zero everywhere.
+        let ramp: Vec<f64> = (0..2000).map(|i| 0.5 + 1e-3 * i as f64).collect();
+        let second =
+            |x: &[f64]| -> f64 { x.windows(3).map(|w| (w[2] - 2.0 * w[1] + w[0]).abs()).fold(0.0, f64::max) / 1e-6 };
+        let extended = zero_phase_lowpass_extended(&ramp, 40.0, 1000.0);
+        assert!(second(&extended) < 1e-3, "{}", second(&extended));
+        let worst = extended.iter().zip(&ramp).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        assert!(worst < 1e-6, "{worst}");
+        // Started at rest, the plain filter bends it at the ends.
+        assert!(second(&zero_phase_lowpass(&ramp, 40.0, 1000.0)) > 10.0);
+    }
 
     #[test]
     fn lowpass_keeps_slow_content_without_lag_and_removes_fast_content() {
