@@ -55,7 +55,7 @@ pub const MAX_REMAINDER_SHARE: f64 = 0.1;
 
 /// Least structure (in noise variances, beyond the signature's floor) the probe must find in the
 /// remainder before it counts: a twentieth of the noise variance, below which the probe's own
-/// estimation scatter lies.
+/// estimation scatter lies (scaled, like the naming threshold, by the sim's own gap).
 pub const MIN_REMAINDER_TO_NOISE: f64 = 0.05;
 
 /// How many standard errors a run's gap must exceed the sim's own floor by before it counts
@@ -566,8 +566,14 @@ impl ProbeResult {
             probe_of(&balance.remainder, &attribution::REMAINDER_PROBE_GROUPS)
         };
         let structure = now.iter().map(|(group, value)| value - floor.probe_of(group)).fold(0.0, f64::max);
+        // The probe's own scatter grows with everything the residual holds, not only its white
+        // part: the least structure that counts is scaled by the noise as the naming threshold
+        // counts it (white plus the sim's own gap).
+        let all_runs = vec![true; runs.len()];
+        let noise_scale = naming_threshold(streams, &all_runs, floor) / (MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE);
         let remainder_structured = balance.named.first().is_some_and(|top| {
-            structure >= MIN_REMAINDER_TO_NOISE.max(MAX_REMAINDER_SHARE * balance.excess(top, streams, floor))
+            structure
+                >= (MIN_REMAINDER_TO_NOISE * noise_scale).max(MAX_REMAINDER_SHARE * balance.excess(top, streams, floor))
         });
         Self { base, structure, remainder_structured }
     }
