@@ -182,7 +182,8 @@ pub struct CandidateSummary {
     pub hyper: BTreeMap<String, serde_json::Value>,
     /// Explained mean square over the noise variance, training part.
     pub explained_to_noise: Option<f64>,
-    /// Mean square it removes on the selection part over the noise variance (what decides).
+    /// Mean square it removes on the selection part over the noise variance, per sample where it
+    /// acts (what decides).
     pub selected_to_noise: Option<f64>,
     /// Complexity-penalised evidence.
     pub delta_bic: Option<f64>,
@@ -530,6 +531,7 @@ mod tests {
             profile: Vec::new(),
             selection: HeldoutGap { mse_before: 0.05, mse_after: 0.03, noise_var: 0.01, n: 50, floor_var: 0.0 },
             heldout: HeldoutGap { mse_before: 0.05, mse_after: 0.02, noise_var: 0.01, n: 50, floor_var: 0.0 },
+            selection_active_share: 1.0,
         };
         let summary = CandidateSummary::from_profiled(0.01)(&profiled);
         assert_eq!(summary.name, "actuator_delay");
