@@ -520,14 +520,19 @@ impl BalanceAttribution {
 /// picks up part of them (on another excitation the structural error no longer lies outside
 /// the fitted terms, as it does on the fit's own recording).
 fn naming_threshold(streams: &Streams, touched: &[bool], floor: &Signature) -> f64 {
+    MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE * noise_with_own_gap(streams, touched, floor)
+}
+
+/// The noise of the touched runs in units of the white noise variance: one plus the sim's own
+/// gap there (the signature's per kind of run and angle of attack, weighted by samples).
+fn noise_with_own_gap(streams: &Streams, touched: &[bool], floor: &Signature) -> f64 {
     let (mut sum, mut n) = (0.0, 0.0);
     for (run, _) in streams.runs.iter().zip(touched).filter(|(_, touched)| **touched) {
         let weight = run.len() as f64;
         sum += weight * floor.gap_of(run.kind.as_str(), run.alpha_deg).max(0.0);
         n += weight;
     }
-    let own_gap = if n > 0.0 { sum / n } else { 0.0 };
-    MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE * (1.0 + own_gap)
+    1.0 + if n > 0.0 { sum / n } else { 0.0 }
 }
 
 /// Stage 3: the structure probe, fitted on the training part and measured on the selection
@@ -569,8 +574,7 @@ impl ProbeResult {
         // The probe's own scatter grows with everything the residual holds, not only its white
         // part: the least structure that counts is scaled by the noise as the naming threshold
         // counts it (white plus the sim's own gap).
-        let all_runs = vec![true; runs.len()];
-        let noise_scale = naming_threshold(streams, &all_runs, floor) / (MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE);
+        let noise_scale = noise_with_own_gap(streams, &vec![true; runs.len()], floor);
         let remainder_structured = balance.named.first().is_some_and(|top| {
             structure
                 >= (MIN_REMAINDER_TO_NOISE * noise_scale).max(MAX_REMAINDER_SHARE * balance.excess(top, streams, floor))
