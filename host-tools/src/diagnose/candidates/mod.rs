@@ -129,6 +129,9 @@ pub enum Shape {
         freq_hz: f64,
         /// Damping ratio.
         zeta: f64,
+        /// Corner of the smoother before the acceleration that drives it, Hz
+        /// ([`crate::diagnose::streams::MODE_DRIVE_CORNERS_HZ`]).
+        drive_corner_hz: f64,
     },
     /// A rate damping's law.
     Damping {
@@ -253,7 +256,7 @@ impl Form {
         match self.shape {
             Shape::Fixed | Shape::Damping { .. } | Shape::Trend { .. } | Shape::Wander { .. } => 0,
             Shape::Delay { .. } | Shape::Lag { .. } | Shape::SlowState { .. } => 1,
-            Shape::Mode { .. } => 2,
+            Shape::Mode { .. } => 3,
         }
     }
 
@@ -283,9 +286,11 @@ impl Form {
                 ("drive", FormValue::Choice(drive.name())),
                 ("law", FormValue::Choice(law.name())),
             ],
-            Shape::Mode { freq_hz, zeta } => {
-                vec![("freq_hz", FormValue::Number(freq_hz)), ("zeta", FormValue::Number(zeta))]
-            }
+            Shape::Mode { freq_hz, zeta, drive_corner_hz } => vec![
+                ("freq_hz", FormValue::Number(freq_hz)),
+                ("zeta", FormValue::Number(zeta)),
+                ("drive_corner_hz", FormValue::Number(drive_corner_hz)),
+            ],
             Shape::Trend { degree } => vec![("degree", FormValue::Number(f64::from(degree)))],
             Shape::Wander { knot_spacing_s } => vec![("knot_spacing_s", FormValue::Number(knot_spacing_s))],
         };
@@ -576,7 +581,11 @@ mod tests {
         assert_eq!(entries[2], ("law", FormValue::Choice("state")));
         assert_eq!(entries[3], ("per_alpha", FormValue::Flag(true)));
         assert_eq!(form.n_profiled(), 1);
-        assert_eq!(Form { shape: Shape::Mode { freq_hz: 9.0, zeta: 0.02 }, per_alpha: false }.n_profiled(), 2);
+        assert_eq!(
+            Form { shape: Shape::Mode { freq_hz: 9.0, zeta: 0.02, drive_corner_hz: 4.0 }, per_alpha: false }
+                .n_profiled(),
+            3
+        );
         assert_eq!(Form { shape: Shape::Wander { knot_spacing_s: 2.0 }, per_alpha: false }.n_profiled(), 0);
     }
 
