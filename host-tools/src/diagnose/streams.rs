@@ -66,9 +66,9 @@ pub struct RunStreams {
     pub phi_dot_rad_s: Vec<f64>,
     /// Roll acceleration from the smoothed angle, rad/s^2.
     pub phi_ddot_rad_s2: Vec<f64>,
-    /// Roll acceleration from the angle smoothed at each of [`MODE_DRIVE_CORNERS_HZ`], rad/s^2
-    /// (the first is [`Self::phi_ddot_rad_s2`]).
-    pub phi_ddot_by_corner_rad_s2: Vec<Vec<f64>>,
+    /// Roll acceleration from the angle smoothed at each of [`MODE_DRIVE_CORNERS_HZ`] after the
+    /// first (which is [`Self::phi_ddot_rad_s2`]'s), rad/s^2; see [`Self::acceleration_at`].
+    pub phi_ddot_smoother_rad_s2: Vec<Vec<f64>>,
     /// Port and starboard Cmu as recorded (missing samples held, never negative).
     pub cmu: [Vec<f64>; 2],
     /// Sim: eGK disturbance moment.
@@ -90,6 +90,16 @@ pub struct RunStreams {
 }
 
 impl RunStreams {
+    /// The roll acceleration smoothed at `corner_hz`, one of [`MODE_DRIVE_CORNERS_HZ`] (`None`
+    /// for another corner).
+    #[must_use]
+    pub fn acceleration_at(&self, corner_hz: f64) -> Option<&[f64]> {
+        match MODE_DRIVE_CORNERS_HZ.iter().position(|c| *c == corner_hz)? {
+            0 => Some(&self.phi_ddot_rad_s2),
+            slot => self.phi_ddot_smoother_rad_s2.get(slot - 1).map(Vec::as_slice),
+        }
+    }
+
     /// Number of samples.
     #[must_use]
     pub fn len(&self) -> usize {
@@ -192,9 +202,8 @@ fn build_run(run: &Run, set: &CoefficientSet, split: &Split) -> RunStreams {
     let smooth_phi = zero_phase_lowpass_extended(&phi_rad, KINEMATICS_CORNER_HZ.min(0.4 * sample_hz), sample_hz);
     let phi_dot_rad_s = central_difference(&smooth_phi, dt_s);
     let phi_ddot_rad_s2 = central_difference(&phi_dot_rad_s, dt_s);
-    let phi_ddot_by_corner_rad_s2 = std::iter::once(phi_ddot_rad_s2.clone())
-        .chain(MODE_DRIVE_CORNERS_HZ[1..].iter().map(|corner_hz| acceleration(&phi_rad, *corner_hz, sample_hz)))
-        .collect();
+    let phi_ddot_smoother_rad_s2 =
+        MODE_DRIVE_CORNERS_HZ[1..].iter().map(|corner_hz| acceleration(&phi_rad, *corner_hz, sample_hz)).collect();
     let cmu = [hold_missing(&run.channels.cmu_port, 0.0), hold_missing(&run.channels.cmu_stbd, 0.0)]
         .map(|cmu| cmu.into_iter().map(|value| value.max(0.0)).collect::<Vec<f64>>());
 
@@ -226,7 +235,7 @@ fn build_run(run: &Run, set: &CoefficientSet, split: &Split) -> RunStreams {
         phi_rad,
         phi_dot_rad_s,
         phi_ddot_rad_s2,
-        phi_ddot_by_corner_rad_s2,
+        phi_ddot_smoother_rad_s2,
         cmu,
         cl_egk,
         cl_afc_side: [afc_port, afc_stbd],
@@ -315,7 +324,7 @@ pub(crate) fn synthetic_run(sample_hz: f64, cp: Vec<Vec<f64>>, innovation: Vec<V
         phi_rad: zeros.clone(),
         phi_dot_rad_s: zeros.clone(),
         phi_ddot_rad_s2: zeros.clone(),
-        phi_ddot_by_corner_rad_s2: MODE_DRIVE_CORNERS_HZ.map(|_| zeros.clone()).to_vec(),
+        phi_ddot_smoother_rad_s2: MODE_DRIVE_CORNERS_HZ[1..].iter().map(|_| zeros.clone()).collect(),
         cmu: [zeros.clone(), zeros.clone()],
         cl_egk: zeros.clone(),
         cl_afc_side: [zeros.clone(), zeros.clone()],

@@ -55,8 +55,7 @@ impl BalanceCandidate for BalanceResonance {
         let Shape::Mode { freq_hz, zeta, drive_corner_hz } = *shape else { return Vec::new() };
         let dt_s = 1.0 / run.sample_hz;
         let load = run.cl_sim();
-        let corner = MODE_DRIVE_CORNERS_HZ.iter().position(|c| *c == drive_corner_hz).unwrap_or(0);
-        let Some(acceleration) = run.phi_ddot_by_corner_rad_s2.get(corner) else { return Vec::new() };
+        let Some(acceleration) = run.acceleration_at(drive_corner_hz) else { return Vec::new() };
         let [load_excess, inertial_excess] =
             mode_excess_pair([&load, acceleration], [1.0, 1.0 / context.moment_scale_nm], freq_hz, zeta, dt_s);
         vec![load_excess, inertial_excess]
@@ -240,7 +239,8 @@ mod tests {
         let quantum_rad = 0.005f64.to_radians();
         let mut run = synthetic_run(sample_hz, vec![vec![0.0; n]], vec![vec![0.0; n]]);
         run.phi_rad = (0..n).map(|i| (phi(t(i)) / quantum_rad).round() * quantum_rad).collect();
-        run.phi_ddot_by_corner_rad_s2 = MODE_DRIVE_CORNERS_HZ
+        run.phi_ddot_rad_s2 = crate::diagnose::streams::acceleration(&run.phi_rad, MODE_DRIVE_CORNERS_HZ[0], sample_hz);
+        run.phi_ddot_smoother_rad_s2 = MODE_DRIVE_CORNERS_HZ[1..]
             .iter()
             .map(|corner_hz| crate::diagnose::streams::acceleration(&run.phi_rad, *corner_hz, sample_hz))
             .collect();
