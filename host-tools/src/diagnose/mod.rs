@@ -331,10 +331,17 @@ pub fn diagnose(
         elapsed_s: clock.elapsed().as_secs_f64(),
     };
     diagnosis.check_finite()?;
+    let families = streams.families();
     let Streams { runs, .. } = streams;
     Ok((
         diagnosis,
-        Evidence { runs, first_round: balance.first_round, named: balance.named, remainder: balance.remainder },
+        Evidence {
+            runs,
+            first_round: balance.first_round,
+            named: balance.named,
+            remainder: balance.remainder,
+            families,
+        },
     ))
 }
 
@@ -424,6 +431,24 @@ impl Streams {
             resonance_min_hz,
             runs,
         }
+    }
+
+    /// What every candidate family searches on these runs.
+    fn families(&self) -> Vec<Family> {
+        let sample_hz = self.runs.first().map_or(1.0, |run| run.sample_hz);
+        let context = self.context();
+        candidates::ALL
+            .iter()
+            .map(|&candidate| {
+                let (forms, searched) = candidates::family_summary(candidate, sample_hz, &context);
+                Family { name: candidate.name(), forms: Some(forms), searched }
+            })
+            .chain(sensor::family_summaries(sample_hz).into_iter().map(|(effect, searched)| Family {
+                name: effect.name(),
+                forms: None,
+                searched,
+            }))
+            .collect()
     }
 
     /// What the candidates' regressors need besides the runs.
@@ -824,6 +849,19 @@ pub struct Evidence {
     pub named: Vec<Profiled>,
     /// The balance residual after the named effects.
     pub remainder: Vec<Vec<f64>>,
+    /// What every candidate family searched on this recording.
+    pub families: Vec<Family>,
+}
+
+/// What one candidate family searched on a recording (the report's statement of its grids).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Family {
+    /// The effect's name (`recalibration` for G0).
+    pub name: &'static str,
+    /// Number of forms profiled (`None` for the sensor families, searched by their own scans).
+    pub forms: Option<usize>,
+    /// The parameters with their ranges or choices.
+    pub searched: String,
 }
 
 /// Every balance candidate profiled on `residuals`, ranked by its complexity-penalised evidence.

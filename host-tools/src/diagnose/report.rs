@@ -24,6 +24,7 @@ pub fn build(diagnosis: &Diagnosis, evidence: &Evidence, dataset_name: &str) -> 
     report.sections.push(verdict_section(diagnosis));
     report.sections.push(ledger_section(diagnosis));
     report.sections.push(candidates_section(diagnosis));
+    report.sections.push(families_section(evidence));
     report.sections.push(plots_section(evidence));
     report
 }
@@ -243,6 +244,33 @@ fn candidates_section(diagnosis: &Diagnosis) -> Section {
     }
 }
 
+/// The grids and ranges every family searched: what a `none` or an `unattributed` rules out.
+fn families_section(evidence: &Evidence) -> Section {
+    let rows = evidence
+        .families
+        .iter()
+        .map(|family| {
+            vec![
+                format!("`{}`", family.name),
+                family.forms.map_or_else(|| "scan".to_owned(), |n| n.to_string()),
+                family.searched.clone(),
+            ]
+        })
+        .collect();
+    Section {
+        heading: "What each candidate family searched".into(),
+        paragraphs: vec![
+            "An effect outside these forms and ranges is not ruled out by this diagnosis; the structure probe only says that something remains.".into(),
+        ],
+        tables: vec![Table {
+            caption: "Candidate families on this recording".into(),
+            header: ["candidate", "forms", "parameters searched"].map(String::from).to_vec(),
+            rows,
+        }],
+        figures: Vec::new(),
+    }
+}
+
 fn plots_section(evidence: &Evidence) -> Section {
     let mut figures = Vec::new();
     if let Some((run_idx, run)) = evidence.runs.iter().enumerate().max_by(|a, b| {
@@ -300,4 +328,26 @@ fn plots_section(evidence: &Evidence) -> Section {
 /// A figure with `decimals` decimals, or `n/a` where it is unknown.
 fn figure(value: Option<f64>, decimals: usize) -> String {
     value.map_or_else(|| "n/a".to_owned(), |v| format!("{v:.decimals$}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::Family;
+
+    /// One row per family, a scanned family marked as such, the text as given.
+    #[test]
+    fn the_families_section_has_a_row_per_family() {
+        let families = vec![
+            Family { name: "inertial_tare", forms: Some(1), searched: "the roll acceleration".into() },
+            Family { name: "pressure_lag", forms: None, searched: "every channel".into() },
+        ];
+        let evidence =
+            Evidence { runs: Vec::new(), first_round: Vec::new(), named: Vec::new(), remainder: Vec::new(), families };
+        let section = families_section(&evidence);
+        let rows = &section.tables[0].rows;
+        assert_eq!(rows.len(), 2);
+        assert_eq!(rows[0], ["`inertial_tare`", "1", "the roll acceleration"].map(String::from).to_vec());
+        assert_eq!(rows[1], ["`pressure_lag`", "scan", "every channel"].map(String::from).to_vec());
+    }
 }

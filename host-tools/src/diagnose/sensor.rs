@@ -94,6 +94,32 @@ pub fn strength(finding: &SensorFinding) -> f64 {
 
 use faults::segments_of;
 
+/// What the sensor families search, for the report: `(effect, forms searched)`.
+#[must_use]
+pub fn family_summaries(sample_hz: f64) -> Vec<(Effect, String)> {
+    let grid = lag_grid(sample_hz);
+    let (low, high) = super::pressure_lag::TAU_RANGE_S;
+    vec![
+        (
+            Effect::PressureLag,
+            format!(
+                "every channel with one time constant from {:.0} to {:.0} ms, the sim's own alignment then subtracted (the taps re-aligned with the balance); one or several channels, each its own time constant, {:.1} to {:.0} ms ({} values, the channels' innovations)",
+                1e3 * low,
+                1e3 * high,
+                1e3 * grid.first().copied().unwrap_or(0.0),
+                1e3 * grid.last().copied().unwrap_or(0.0),
+                grid.len()
+            ),
+        ),
+        (
+            Effect::PressureFault,
+            format!(
+                "one channel: dead (missing where the others read); stuck from an onset per run (bit-identical readings, or a constant with the sensor's noise that stops following the pressure); a bias stepping in at its own onset in each run; spikes of 1 to {SPIKE_MAX_BURST} samples beyond {SPIKE_SIGMA} robust standard deviations"
+            ),
+        ),
+    ]
+}
+
 /// Time constants of the lag candidate, s: a log grid from two samples to half a second.
 fn lag_grid(sample_hz: f64) -> Vec<f64> {
     super::candidates::log_grid(2.0 / sample_hz, 0.5, 28)

@@ -19,6 +19,10 @@ pub struct ActuatorLag;
 const SEPARATOR: &str = "a bench step test of the valve and runs at a second free-stream speed (the pneumatic part is fixed in seconds, the aerodynamic part scales with c/U)";
 
 impl BalanceCandidate for ActuatorDelay {
+    fn regressors(&self) -> &'static str {
+        "the sim's plant re-run on the recorded Cmu delayed by d, less its moment"
+    }
+
     fn effect(&self) -> Option<Effect> {
         Some(Effect::ActuatorDelay)
     }
@@ -47,6 +51,10 @@ impl BalanceCandidate for ActuatorDelay {
 }
 
 impl BalanceCandidate for ActuatorLag {
+    fn regressors(&self) -> &'static str {
+        "the sim's plant re-run on the recorded Cmu through a first-order lag, less its moment"
+    }
+
     fn effect(&self) -> Option<Effect> {
         Some(Effect::ActuatorLag)
     }

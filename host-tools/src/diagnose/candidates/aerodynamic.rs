@@ -31,6 +31,10 @@ pub struct Recalibration;
 const AERODYNAMIC_SEPARATOR: &str = "forced roll at several reduced frequencies and a second free-stream speed (aerodynamic lags scale with c/U, rig lags do not)";
 
 impl BalanceCandidate for RollDamping {
+    fn regressors(&self) -> &'static str {
+        "the reduced roll rate, linear or times its size"
+    }
+
     fn effect(&self) -> Option<Effect> {
         Some(Effect::RollDamping)
     }
@@ -64,6 +68,10 @@ impl BalanceCandidate for RollDamping {
 }
 
 impl BalanceCandidate for VortexLag {
+    fn regressors(&self) -> &'static str {
+        "a first-order state of the eGK moment and of a physical drive, as the state or its deficit"
+    }
+
     fn effect(&self) -> Option<Effect> {
         Some(Effect::VortexLag)
     }
@@ -118,6 +126,10 @@ impl BalanceCandidate for VortexLag {
 }
 
 impl BalanceCandidate for Coupling {
+    fn regressors(&self) -> &'static str {
+        "the eGK moment, the roll angle and the reduced roll rate, each times the differential blowing, the total blowing and the plant's moment"
+    }
+
     fn effect(&self) -> Option<Effect> {
         Some(Effect::Coupling)
     }
@@ -173,6 +185,10 @@ impl BalanceCandidate for Coupling {
 }
 
 impl BalanceCandidate for Recalibration {
+    fn regressors(&self) -> &'static str {
+        "the eGK moment and the plant moment (one gain each)"
+    }
+
     fn effect(&self) -> Option<Effect> {
         None
     }

@@ -40,6 +40,9 @@ pub trait BalanceCandidate: Sync + fmt::Debug {
     /// (gap-diagnosis.md section 2.11, "separator").
     fn separating_experiment(&self) -> &'static str;
 
+    /// The family's regressors in words, for the report (what the grids below are grids of).
+    fn regressors(&self) -> &'static str;
+
     /// The shapes of the family (every nonlinear parameter on its grid, every discrete choice).
     fn shapes(&self, sample_hz: f64, context: &Context<'_>) -> Vec<Shape>;
 
@@ -318,6 +321,48 @@ pub fn forms(candidate: Candidate, sample_hz: f64, context: &Context<'_>) -> Vec
         .collect()
 }
 
+/// What `candidate`'s family searched on this recording, for the report: how many forms, and
+/// every parameter of its forms with its range (numbers: least, greatest and how many values)
+/// or its choices.
+#[must_use]
+pub fn family_summary(candidate: Candidate, sample_hz: f64, context: &Context<'_>) -> (usize, String) {
+    let forms = forms(candidate, sample_hz, context);
+    let mut numbers: BTreeMap<&'static str, Vec<f64>> = BTreeMap::new();
+    let mut choices: BTreeMap<&'static str, Vec<String>> = BTreeMap::new();
+    for form in &forms {
+        for (name, value) in form.entries().into_iter().filter(|(name, _)| *name != "per_alpha") {
+            match value {
+                FormValue::Number(x) => numbers.entry(name).or_default().push(x),
+                other => {
+                    let text = other.to_string();
+                    let seen = choices.entry(name).or_default();
+                    if !seen.contains(&text) {
+                        seen.push(text);
+                    }
+                }
+            }
+        }
+    }
+    let mut parts: Vec<String> = vec![candidate.regressors().to_owned()];
+    parts.extend(numbers.into_iter().map(|(name, mut values)| {
+        values.sort_by(f64::total_cmp);
+        values.dedup();
+        let (low, high) = (values.first().copied().unwrap_or(0.0), values.last().copied().unwrap_or(0.0));
+        if values.len() == 1 {
+            format!("{name} {low:.4}")
+        } else {
+            format!("{name} {low:.4} to {high:.4} ({} values)", values.len())
+        }
+    }));
+    parts.extend(choices.into_iter().map(|(name, values)| format!("{name}: {}", values.join(" or "))));
+    if candidate.schedulable() && context.alphas_deg.len() < 2 {
+        parts.push("one gain (one angle of attack)".into());
+    } else if candidate.schedulable() {
+        parts.push("one gain for all angles or one per angle".into());
+    }
+    (forms.len(), parts.join("; "))
+}
+
 /// The regression columns of `candidate` in `form` for run number `run_idx`; with one gain per
 /// angle of attack, each base column is repeated per alpha and zero at the other alphas.
 #[must_use]
@@ -587,6 +632,22 @@ mod tests {
             3
         );
         assert_eq!(Form { shape: Shape::Wander { knot_spacing_s: 2.0 }, per_alpha: false }.n_profiled(), 0);
+    }
+
+    /// The report's statement of a family: its regressors, then every profiled parameter with
+    /// its range and count, then the choices; a scheduled family says it may take one gain per
+    /// angle.
+    #[test]
+    fn a_family_summary_states_its_forms_and_ranges() {
+        let context = test_context();
+        let (forms, text) = family_summary(&BalanceResonance, 1000.0, &context);
+        assert_eq!(forms, 60 * RESONANCE_DAMPING.len() * crate::diagnose::streams::MODE_DRIVE_CORNERS_HZ.len());
+        assert!(text.starts_with(BalanceResonance.regressors()), "{text}");
+        assert!(text.contains("zeta 0.0050 to 0.1000 (6 values)"), "{text}");
+        assert!(text.contains("freq_hz 4.0000 to 250.0000 (60 values)"), "{text}");
+        let (forms, text) = family_summary(&RollDamping, 1000.0, &context);
+        assert_eq!(forms, 4);
+        assert!(text.ends_with("law: linear or quadratic; one gain for all angles or one per angle"), "{text}");
     }
 
     #[test]

@@ -30,6 +30,10 @@ pub struct BalanceResonance;
 pub struct BiasDrift;
 
 impl BalanceCandidate for BalanceResonance {
+    fn regressors(&self) -> &'static str {
+        "(H - 1) of the sim's load and of the roll acceleration over q S b, H a unit-gain mode"
+    }
+
     fn effect(&self) -> Option<Effect> {
         Some(Effect::BalanceResonance)
     }
@@ -67,6 +71,10 @@ impl BalanceCandidate for BalanceResonance {
 }
 
 impl BalanceCandidate for BiasDrift {
+    fn regressors(&self) -> &'static str {
+        "per run, powers of time from zero at its start, or a piecewise-linear zero between knots"
+    }
+
     fn effect(&self) -> Option<Effect> {
         Some(Effect::BiasDrift)
     }

@@ -20,6 +20,10 @@ pub struct InertialTare;
 pub struct GravityTare;
 
 impl BalanceCandidate for InertialTare {
+    fn regressors(&self) -> &'static str {
+        "the roll acceleration over q S b (an inertia left in the balance)"
+    }
+
     fn effect(&self) -> Option<Effect> {
         Some(Effect::InertialTare)
     }
@@ -43,6 +47,10 @@ impl BalanceCandidate for InertialTare {
 }
 
 impl BalanceCandidate for GravityTare {
+    fn regressors(&self) -> &'static str {
+        "sin(phi) and cos(phi) - 1 over q S b (a centre of gravity off the axis both ways)"
+    }
+
     fn effect(&self) -> Option<Effect> {
         Some(Effect::GravityTare)
     }
