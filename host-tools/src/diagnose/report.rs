@@ -223,7 +223,7 @@ fn candidates_section(diagnosis: &Diagnosis) -> Section {
     Section {
         heading: "Which effect: every candidate".into(),
         paragraphs: vec![
-            "Each candidate is profiled over its grid of physical parameters on the training part; `explained/noise` is the mean square it explains on the runs it touches over the noise variance; `delta BIC` penalises its columns and profiled parameters on the effective number of samples. `removed/noise` is what the fitted candidate removes on the selection part, which it was not fitted on: an effect is named on it, beyond the sim's own signature, and its shrink is reported on the held-out part, which chooses nothing. Recalibration of the existing blocks competes with the new effects.".into(),
+            "Each candidate is profiled over its grid of physical parameters on the training part; `explained/noise` is the mean square it explains on the runs it touches over the noise variance; `delta BIC` penalises its columns and profiled parameters on the effective number of samples. `confirmed/noise` is the size the selection part, which it was not fitted on, confirms per sample where it acts: the larger of what it removes there and what it explains on the training part times its calibration slope there (balance candidates; for sensor findings, what it removes there). An effect is named on it, beyond the sim's own signature, and its shrink is reported on the held-out part, which chooses nothing. Recalibration of the existing blocks competes with the new effects.".into(),
         ],
         tables: vec![Table {
             caption: "Candidates (balance, best first; then sensor)".into(),
@@ -232,7 +232,7 @@ fn candidates_section(diagnosis: &Diagnosis) -> Section {
                 "block",
                 "profiled parameters",
                 "explained/noise (training)",
-                "removed/noise (selection)",
+                "confirmed/noise (selection)",
                 "delta BIC",
                 "held-out shrink",
             ]

@@ -182,8 +182,9 @@ pub struct CandidateSummary {
     pub hyper: BTreeMap<String, serde_json::Value>,
     /// Explained mean square over the noise variance, training part.
     pub explained_to_noise: Option<f64>,
-    /// Mean square it removes on the selection part over the noise variance, per sample where it
-    /// acts (what decides).
+    /// The size the selection part confirms, per sample where the effect acts, over the noise
+    /// variance (what decides; [`crate::diagnose::attribution::Profiled::selected`]); for a
+    /// sensor finding, the mean square it removes on the selection part.
     pub selected_to_noise: Option<f64>,
     /// Complexity-penalised evidence.
     pub delta_bic: Option<f64>,
@@ -531,6 +532,8 @@ mod tests {
             profile: Vec::new(),
             selection: HeldoutGap { mse_before: 0.05, mse_after: 0.03, noise_var: 0.01, n: 50, floor_var: 0.0 },
             heldout: HeldoutGap { mse_before: 0.05, mse_after: 0.02, noise_var: 0.01, n: 50, floor_var: 0.0 },
+            selection_slope: crate::diagnose::attribution::Slope { value: 0.5, standard_error: 0.1 },
+            active_share: 1.0,
             selection_active_share: 1.0,
         };
         let summary = CandidateSummary::from_profiled(0.01)(&profiled);
