@@ -65,6 +65,7 @@ impl Profiled {
     /// the training part does (a roll damping whose blocks fell in the fastest rolling), the
     /// first measure is the larger. Each alone named nothing on the clean recordings of either
     /// tunnel (0 of 20), so neither does their larger.
+    #[must_use]
     pub fn selected(&self) -> f64 {
         let removed = self.selection.removed() / self.selection_active_share.max(f64::MIN_POSITIVE);
         let Slope { value, standard_error } = self.selection_slope;
