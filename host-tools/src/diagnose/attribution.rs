@@ -232,18 +232,28 @@ pub fn subtract(
 /// Groups of the structure probe: shapes outside every candidate's span that a real gap often
 /// has. Used only to say that something remains, never to name it; each group is compared
 /// with its own floor in the sim's signature.
-pub const PROBE_GROUPS: [&str; 3] = ["static_nonlinearity", "slow_gain", "input_dynamics"];
+pub const PROBE_GROUPS: [&str; 4] = ["static_nonlinearity", "moment_nonlinearity", "slow_gain", "input_dynamics"];
 
 /// The probe groups also asked of the remainder after a named effect: shapes no candidate
 /// spans. `input_dynamics` spans much of what the candidates do and asks only whether the
 /// residual holds input-driven structure when nothing is named.
-pub const REMAINDER_PROBE_GROUPS: [&str; 2] = ["static_nonlinearity", "slow_gain"];
+pub const REMAINDER_PROBE_GROUPS: [&str; 3] = ["static_nonlinearity", "moment_nonlinearity", "slow_gain"];
 
 /// Time constants of the `input_dynamics` probe, s: fast, middle and slow, a decade apart.
 const PROBE_TAUS_S: [f64; 3] = [0.02, 0.2, 2.0];
 
+/// A typical roll moment coefficient of the wing (domain-models.md: |C_l| stays under about
+/// 0.06): the unit of the moment's powers in the static-nonlinearity probe.
+const TYPICAL_MOMENT: f64 = 0.05;
+
 /// Columns of one probe group (see [`PROBE_GROUPS`]): odd powers of the roll angle, rate
-/// nonlinearity and the eGK moment's growth with the angle (`static_nonlinearity`); the sim's
+/// nonlinearity and the eGK moment's growth with the angle (`static_nonlinearity`); the same
+/// and the square and cube of the sim's moment, a curved balance calibration or a spring that
+/// stiffens with the load (`moment_nonlinearity`). The nested groups each meet their own floor
+/// in the signature: the wider one sees shapes that mix both (a stiffening balance spring
+/// after a named `vortex_lag` on the second tunnel, where the moment's powers alone did not),
+/// while the narrower keeps its lower floor (in one group, a cubic of the roll angle at 0.7
+/// times the noise went unseen there); the sim's
 /// moment times Legendre polynomials of time per run, a slowly varying gain (`slow_gain`); the
 /// roll angle, reduced roll rate, total blowing and the sim's moment through first-order lags of
 /// three time scales (`input_dynamics`: any linear dynamics the sim lacks).
@@ -266,14 +276,22 @@ pub fn probe_columns(runs: &[RunStreams], group: &str) -> Vec<Vec<Vec<f64>>> {
                 }
                 return cols;
             }
-            if group == "static_nonlinearity" {
-                return vec![
+            if group == "static_nonlinearity" || group == "moment_nonlinearity" {
+                let mut cols = vec![
                     run.phi_rad.iter().map(|phi| phi.powi(3)).collect::<Vec<f64>>(),
                     run.phi_rad.iter().map(|phi| phi.powi(5)).collect(),
                     run.phi_dot_rad_s.iter().map(|rate| rate * rate.abs()).collect(),
                     run.phi_dot_rad_s.iter().map(|rate| (rate / 0.2).tanh()).collect(),
                     run.phi_rad.iter().zip(&run.cl_egk).map(|(phi, cl)| cl * phi * phi).collect(),
                 ];
+                if group == "moment_nonlinearity" {
+                    // The sim's moment in units of a typical moment, so that its powers keep
+                    // the regression well scaled.
+                    let moment: Vec<f64> = run.cl_sim().iter().map(|cl| cl / TYPICAL_MOMENT).collect();
+                    cols.push(moment.iter().map(|m| m * m).collect());
+                    cols.push(moment.iter().map(|m| m.powi(3)).collect());
+                }
+                return cols;
             }
             let sim = run.cl_sim();
             let duration = run.t_s.last().copied().unwrap_or(1.0).max(f64::MIN_POSITIVE);
@@ -481,6 +499,20 @@ mod tests {
         for (value, want) in values.iter().zip(expected) {
             assert!((value - want).abs() < 1e-15, "{values:?}");
         }
+    }
+
+    /// The moment-nonlinearity probe at one sample, by hand: a sim moment of 0.1 (eGK 0.04,
+    /// jets 0.03 and 0.02, coupling 0.01) is 2 typical moments, so the columns are 4 and 8.
+    #[test]
+    fn the_moment_nonlinearity_probe_is_the_square_and_cube_of_the_moment() {
+        let mut run = synthetic_run(100.0, vec![vec![0.0; 3]], vec![vec![0.0; 3]]);
+        run.cl_egk = vec![0.04; 3];
+        run.cl_afc_side = [vec![0.03; 3], vec![0.02; 3]];
+        run.coupling = vec![0.01; 3];
+        let columns = probe_columns(&[run], "moment_nonlinearity");
+        let values: Vec<f64> = columns[0][5..].iter().map(|col| col[2]).collect();
+        assert_eq!(values.len(), 2);
+        assert!((values[0] - 4.0).abs() < 1e-12 && (values[1] - 8.0).abs() < 1e-12, "{values:?}");
     }
 
     /// The slow-gain probe: per run, the sim's moment (2 here) times `P_1..P_4` of time mapped

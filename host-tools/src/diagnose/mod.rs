@@ -987,7 +987,7 @@ fn describe_structure(
         })
         .unwrap_or_default();
     format!(
-        "a gap above the noise floor in {} with no candidate that explains it{best}; a generic probe (odd powers of the roll angle, rate nonlinearity, slowly varying gain on the moment) finds {:.2} noise variances of structure",
+        "a gap above the noise floor in {} with no candidate that explains it{best}; a generic probe (odd powers of the roll angle, rate nonlinearity, powers of the moment, slowly varying gain on the moment, lagged inputs) finds {:.2} noise variances of structure",
         if kinds.is_empty() { "the remainder".to_owned() } else { kinds.join(", ") },
         probe_share
     )
