@@ -230,24 +230,6 @@ impl Alignment {
         let n = self.taps.len();
         minimise(|tau| self.ssr(&vec![tau; n]), TAU_RANGE_S)
     }
-
-    /// The one time constant of the `members` (one flag per channel of [`Self::taps`]) that
-    /// re-aligns the taps with the balance best, the other channels kept at `reference_tau_s`.
-    #[must_use]
-    pub fn shared_on(&self, members: &[bool], reference_tau_s: f64) -> f64 {
-        minimise(|tau| self.ssr(&group_taus(members, tau, reference_tau_s)), TAU_RANGE_S)
-    }
-}
-
-/// One time constant per channel: `tau_s` for the members, `reference_tau_s` for the others.
-fn group_taus(members: &[bool], tau_s: f64, reference_tau_s: f64) -> Vec<f64> {
-    members.iter().map(|&member| if member { tau_s } else { reference_tau_s }).collect()
-}
-
-/// `ln C(n, k)`: what naming `k` of `n` channels costs in the evidence (the choice of the set
-/// is a parameter of its own, as in the extended BIC of Chen and Chen 2008).
-pub(crate) fn ln_choose(n: usize, k: usize) -> f64 {
-    (1..=k.min(n)).map(|i| ((n - k.min(n) + i) as f64 / i as f64).ln()).sum()
 }
 
 fn alpha_key(alpha_deg: f64) -> i64 {
@@ -285,26 +267,18 @@ fn minimise(mut f: impl FnMut(f64) -> f64, range: (f64, f64)) -> f64 {
     if f(refined) <= values[best] { refined } else { low + step * best as f64 }
 }
 
-/// The `pressure_lag` finding of the alignment: a lag of every channel, or of a group of them,
-/// with one time constant, or `None` when the taps cannot be aligned with the balance.
-/// `reference_tau_s` is the sim's own alignment on the data it was fitted on (its signature: a
-/// rig's tubing and the sim's map sit a few milliseconds from zero); only time constants beyond
-/// it are a lag.
+/// The `pressure_lag` finding of the alignment: every channel lagged by one time constant, or
+/// `None` when the taps cannot be aligned with the balance. `reference_tau_s` is the sim's own
+/// alignment on the data it was fitted on (its signature: a rig's tubing and the sim's map sit a
+/// few milliseconds from zero); only time constants beyond it are a lag.
 ///
-/// Only a time constant shared by the lagged channels is taken from the balance: one time
-/// constant per channel is not identifiable this way (twelve correlated taps trade their lags
-/// against each other: on a clean recording single channels came out 10 to 15 ms off, on a
-/// 50 ms lag of every channel from 40 to 136 ms), and neither is which channels lag (on the
-/// second tunnel's campaign 41, the channels added one by one in the order of their
-/// innovations' lag evidence gave criteria that rose and fell with no relation to the lagged
-/// set, and a lag of every channel was best fitted as a lag of nine). The innovations tell the
-/// channels: a lag of a few channels shows in their innovations, where the other channels hold
-/// the filter, while a lag of all of them does not. So two hypotheses are weighed by the
-/// balance: every channel, or the `group` (two channels or more) the innovations propose, each at its best shared
-/// time constant, the group paying `ln C(n, k)` for its choice. Without that, a lag of three
-/// channels by 23 ms was named a lag of all twelve by 10.5 ms (campaign 41, case 92).
+/// Only the common lag is taken from the balance: one time constant per channel is not
+/// identifiable this way (twelve correlated taps trade their lags against each other: on a
+/// clean recording single channels came out 10 to 15 ms off, on a 50 ms lag of every channel
+/// from 40 to 136 ms). A lag of one channel is the innovations' ([`super::sensor`]), where the
+/// other channels hold the filter.
 #[must_use]
-pub fn finding(runs: &[RunStreams], reference_tau_s: f64, group: &[usize]) -> Option<SensorFinding> {
+pub fn finding(runs: &[RunStreams], reference_tau_s: f64) -> Option<SensorFinding> {
     let alignment = Alignment::new(runs, |run| run.fit_samples().collect())?;
     let n_taps = alignment.taps().len();
     let ssr_reference = alignment.ssr(&vec![reference_tau_s; n_taps]);
@@ -312,8 +286,8 @@ pub fn finding(runs: &[RunStreams], reference_tau_s: f64, group: &[usize]) -> Op
     if shared <= reference_tau_s {
         return None;
     }
-    let every = vec![true; n_taps];
-    let residuals = alignment.residuals(runs, |run| run.fit_samples().collect(), &vec![shared; n_taps]);
+    let taus = vec![shared; n_taps];
+    let residuals = alignment.residuals(runs, |run| run.fit_samples().collect(), &taus);
     let segments: Vec<Segment<'_>> = residuals
         .iter()
         .map(|r| Segment { residual: r, training: 0..r.len(), select: Interleave::default(), heldout: 0..0 })
@@ -322,38 +296,14 @@ pub fn finding(runs: &[RunStreams], reference_tau_s: f64, group: &[usize]) -> Op
     if n_eff < 2.0 || ssr_reference <= 0.0 {
         return None;
     }
-    // The hypotheses: every channel, or the first k of the ranking, each at its best shared
-    // time constant; the least criterion `N_eff ln SSR + ln C(n, k)` wins.
-    let criterion = |members: &[bool], tau_s: f64| {
-        let k = members.iter().filter(|m| **m).count();
-        n_eff * alignment.ssr(&group_taus(members, tau_s, reference_tau_s)).max(f64::MIN_POSITIVE).ln()
-            + ln_choose(n_taps, k)
-    };
-    let mut best = (criterion(&every, shared), every.clone(), shared);
-    let proposed: Vec<bool> = alignment.taps().iter().map(|tap| group.contains(tap)).collect();
-    // A group of one is no group: one channel's lag is the innovations' (the alignment put a
-    // 26 ms lag of one channel at the end of its range).
-    if proposed.iter().filter(|m| **m).count() >= 2 && proposed.iter().any(|m| !*m) {
-        let tau_s = alignment.shared_on(&proposed, reference_tau_s);
-        let value = criterion(&proposed, tau_s);
-        if tau_s > reference_tau_s && value < best.0 {
-            best = (value, proposed, tau_s);
-        }
-    }
-    let (_, members, tau_s) = best;
-    let taus = group_taus(&members, tau_s, reference_tau_s);
-    let delta_bic = n_eff * (ssr_reference / alignment.ssr(&taus).max(f64::MIN_POSITIVE)).ln()
-        - n_eff.ln()
-        - ln_choose(n_taps, members.iter().filter(|m| **m).count());
-    let lag_s = tau_s - reference_tau_s;
-    let lagged: Vec<usize> =
-        alignment.taps().iter().zip(&members).filter(|(_, member)| **member).map(|(tap, _)| *tap).collect();
+    let delta_bic = n_eff * (ssr_reference / alignment.ssr(&taus).max(f64::MIN_POSITIVE)).ln() - n_eff.ln();
+    let lag_s = shared - reference_tau_s;
     // The lag's deviation from the true pressure is `-tau y'` (exact for a first-order lag):
-    // its mean square over the lagged channels' samples of one part.
+    // its mean square over the channels' samples of one part.
     let deviation = |part: &dyn Fn(&RunStreams) -> Vec<usize>, tau_s: f64| {
         let (mut sum, mut n) = (0.0, 0usize);
         for run in runs {
-            for &tap in &lagged {
+            for &tap in alignment.taps() {
                 for idx in part(run) {
                     let value = tau_s * run.cp_dot[tap][idx];
                     if value.is_finite() {
@@ -369,7 +319,7 @@ pub fn finding(runs: &[RunStreams], reference_tau_s: f64, group: &[usize]) -> Op
     let noise_var = {
         let mut differences = Vec::new();
         for run in runs {
-            for &tap in &lagged {
+            for &tap in alignment.taps() {
                 let cp = &run.cp[tap];
                 differences.extend(run.training.clone().skip(1).map(|i| cp[i] - cp[i - 1]).filter(|d| d.is_finite()));
             }
@@ -378,31 +328,25 @@ pub fn finding(runs: &[RunStreams], reference_tau_s: f64, group: &[usize]) -> Op
     };
     // Selection and held out: the lag each part shows on its own against the training
     // estimate, as deviations in Cp (no noise in either: they are the lag's own deviations).
-    // The same channels on every part: the parts judge the time constant, not the choice.
     let check = |part: &dyn Fn(&RunStreams) -> Vec<usize>| {
         Alignment::new(runs, part).map_or(regression::HeldoutGap::EMPTY, |own| {
-            if own.taps() != alignment.taps() {
-                return regression::HeldoutGap::EMPTY;
-            }
-            let tau_own = own.shared_on(&members, reference_tau_s);
+            let tau_own = own.shared();
             let (before, n) = deviation(part, (tau_own - reference_tau_s).max(0.0));
-            let (after, _) = deviation(part, tau_own.max(reference_tau_s) - tau_s);
+            let (after, _) = deviation(part, tau_own.max(reference_tau_s) - shared);
             regression::HeldoutGap { mse_before: before, mse_after: after, noise_var: 0.0, n, floor_var: 0.0 }
         })
     };
     let selection = check(&|run| run.select.samples().collect());
     let heldout = check(&|run| run.heldout.clone().collect());
-    let names: Vec<String> = lagged.iter().map(|&tap| channel_name(tap)).collect();
-    let all = lagged.len() == n_taps;
-    let which = if all { "every channel is".to_owned() } else { format!("{} are", names.join(", ")) };
+    let names: Vec<String> = alignment.taps().iter().map(|&tap| channel_name(tap)).collect();
     Some(SensorFinding {
         effect: firmware_sim::effect::Effect::PressureLag,
         params: vec![
             ("tau_s".to_owned(), ParamValue::Number(lag_s)),
-            ("channels".to_owned(), ParamValue::Text(if all { "all".into() } else { names.join(",") })),
+            ("channels".to_owned(), ParamValue::Text("all".into())),
             ("reference_tau_s".to_owned(), ParamValue::Number(reference_tau_s)),
         ],
-        channel: (names.len() == 1).then(|| names[0].clone()),
+        channel: None,
         channels: names,
         explained,
         noise_var,
@@ -410,7 +354,7 @@ pub fn finding(runs: &[RunStreams], reference_tau_s: f64, group: &[usize]) -> Op
         heldout,
         selection,
         evidence: format!(
-            "the taps align with the balance moment once {which} de-lagged by {:.1} ms beyond the sim's own {:.1} ms",
+            "the taps align with the balance moment once every channel is de-lagged by {:.1} ms beyond the sim's own {:.1} ms",
             1e3 * lag_s,
             1e3 * reference_tau_s
         ),
@@ -420,68 +364,6 @@ pub fn finding(runs: &[RunStreams], reference_tau_s: f64, group: &[usize]) -> Op
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::diagnose::streams::synthetic_run;
-
-    const HZ: f64 = 1000.0;
-    const TAPS: usize = 12;
-
-    /// The pressure of `tap` at `t_s` read through a first-order lag of `tau_s`, in closed form
-    /// (each sinusoid scaled by `1 / sqrt(1 + (w tau)^2)`, delayed by `atan(w tau)`), and its
-    /// time derivative: two sinusoids of the tap's own frequencies, so no tap is a mix of others.
-    fn pressure(tap: usize, t_s: f64, tau_s: f64) -> (f64, f64) {
-        let parts = [(0.3, 1.0 + 0.37 * tap as f64, 0.5 * tap as f64), (0.1, 3.0 + 0.53 * tap as f64, tap as f64)];
-        parts.iter().fold((0.0, 0.0), |(value, slope), &(amplitude, freq_hz, phase)| {
-            let w = std::f64::consts::TAU * freq_hz;
-            let (gain, angle) = (amplitude / (1.0 + (w * tau_s).powi(2)).sqrt(), w * t_s + phase - (w * tau_s).atan());
-            (value + gain * angle.sin(), slope + gain * w * angle.cos())
-        })
-    }
-
-    /// Ten seconds of twelve taps, those of `lagged` read through a lag of `tau_s`, and a
-    /// balance that reads the true pressures' weighted sum at the same instant.
-    fn recording(lagged: &[usize], tau_s: f64) -> RunStreams {
-        let n = 10_000;
-        let reading =
-            |tap: usize, idx: usize| pressure(tap, idx as f64 / HZ, if lagged.contains(&tap) { tau_s } else { 0.0 });
-        let cp: Vec<Vec<f64>> = (0..TAPS).map(|tap| (0..n).map(|idx| reading(tap, idx).0).collect()).collect();
-        let mut run = synthetic_run(HZ, cp, vec![vec![0.0; n]; TAPS]);
-        run.cp_dot = (0..TAPS).map(|tap| (0..n).map(|idx| reading(tap, idx).1).collect()).collect();
-        run.cl_measured = (0..n)
-            .map(|idx| (0..TAPS).map(|tap| (0.01 + 0.002 * tap as f64) * pressure(tap, idx as f64 / HZ, 0.0).0).sum())
-            .collect();
-        run
-    }
-
-    /// Two of twelve channels lagged by 40 ms: offered as a group, the two are named with their
-    /// time constant; offered nothing, every channel is (the balance alone cannot tell which).
-    #[test]
-    fn a_lagged_group_the_innovations_propose_is_named_with_its_time_constant() {
-        let runs = [recording(&[0, 3], 0.04)];
-        let group = finding(&runs, 0.0, &[0, 3]).expect("a lag");
-        assert_eq!(group.channels, ["cp01", "cp04"]);
-        let ParamValue::Number(tau_s) = group.params[0].1 else { panic!("{:?}", group.params) };
-        assert!((tau_s / 0.04 - 1.0).abs() < 0.05, "{tau_s}");
-        assert!(group.delta_bic > 0.0 && group.heldout.mse_after < 0.1 * group.heldout.mse_before, "{group:?}");
-        assert_eq!(finding(&runs, 0.0, &[]).expect("a lag").channels.len(), TAPS);
-    }
-
-    /// Every channel lagged by 40 ms: a group proposed by chance is weighed and rejected, and
-    /// the common time constant is found.
-    #[test]
-    fn a_lag_of_every_channel_is_not_taken_for_the_proposed_group() {
-        let runs = [recording(&(0..TAPS).collect::<Vec<_>>(), 0.04)];
-        let found = finding(&runs, 0.0, &[0, 3]).expect("a lag");
-        assert_eq!(found.channels.len(), TAPS);
-        let ParamValue::Number(tau_s) = found.params[0].1 else { panic!("{:?}", found.params) };
-        assert!((tau_s / 0.04 - 1.0).abs() < 0.05, "{tau_s}");
-    }
-
-    /// `ln C(n, k)` against the binomial coefficients: C(12, 3) = 220, C(12, 0) = C(12, 12) = 1.
-    #[test]
-    fn the_choice_of_channels_costs_the_log_binomial() {
-        assert!((ln_choose(12, 3) - 220f64.ln()).abs() < 1e-12);
-        assert!(ln_choose(12, 0).abs() < 1e-12 && ln_choose(12, 12).abs() < 1e-12);
-    }
 
     #[test]
     fn minimise_finds_the_bottom_of_a_parabola_off_the_grid() {

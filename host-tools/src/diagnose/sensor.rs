@@ -19,13 +19,6 @@ const SPIKE_SIGMA: f64 = 6.0;
 /// How many times the typical channel's lag evidence a channel's must be to stand out as lagged.
 const STAND_OUT: f64 = 4.0;
 
-/// Share of the naming threshold a channel's innovations must hold as a lag to join the group
-/// that [`super::pressure_lag::finding`] weighs against a lag of every channel. Clean
-/// recordings of both tunnels held at most 0.011 noise variances per channel, a lag of all
-/// channels up to 0.07 on one (which the balance then rejects as a group), a lag of three or
-/// five channels 0.07 to 7.5 on each lagged one.
-const GROUP_JOIN: f64 = 0.1;
-
 /// Longest burst of consecutive spiking samples that still counts as spikes.
 const SPIKE_MAX_BURST: usize = 5;
 
@@ -78,14 +71,8 @@ pub fn findings(runs: &[RunStreams], reference_tau_s: f64) -> Vec<SensorFinding>
     if n_taps == 0 {
         return out;
     }
-    let best = channel_lags(runs, n_taps);
-    // The channels whose innovations hold a lag of a tenth of the naming threshold: the
-    // group the alignment weighs against every channel (it decides; this only proposes).
-    let join = GROUP_JOIN * super::MIN_EFFECT_TO_NOISE * super::MIN_EFFECT_TO_NOISE;
-    let group: Vec<usize> =
-        (0..n_taps).filter(|&tap| best[tap].is_some_and(|(_, evidence)| evidence >= join)).collect();
-    out.extend(super::pressure_lag::finding(runs, reference_tau_s, &group));
-    out.extend(lag_findings(runs, n_taps, &best));
+    out.extend(super::pressure_lag::finding(runs, reference_tau_s));
+    out.extend(lag_findings(runs, n_taps));
     out.extend((0..n_taps).filter_map(|tap| fault_finding(runs, tap, n_taps)));
     out.sort_by(|a, b| strength(b).total_cmp(&strength(a)));
     out
@@ -154,11 +141,42 @@ fn lag_column(run: &RunStreams, tap: usize, tau_s: f64) -> Vec<f64> {
 /// channels unlagged, the filter's modes follow them and a lagged channel's innovation shows its
 /// lag; a lag common to most channels is the alignment's ([`super::pressure_lag`]), which the
 /// innovations cannot see.
-fn lag_findings(runs: &[RunStreams], n_taps: usize, best: &[Option<(usize, f64)>]) -> Vec<SensorFinding> {
+fn lag_findings(runs: &[RunStreams], n_taps: usize) -> Vec<SensorFinding> {
     let Some(sample_hz) = runs.first().map(|run| run.sample_hz) else {
         return Vec::new();
     };
     let grid = lag_grid(sample_hz);
+    // Per channel and grid point: the fit.
+    let per_tau: Vec<Vec<Option<regression::Fit>>> = grid
+        .iter()
+        .map(|&tau_s| {
+            (0..n_taps)
+                .map(|tap| {
+                    let segments = segments_of(runs, tap);
+                    let columns: Vec<Vec<Vec<f64>>> =
+                        runs.iter().map(|run| vec![lag_column(run, tap, tau_s)]).collect();
+                    regression::fit_through_origin(&segments, &columns)
+                })
+                .collect()
+        })
+        .collect();
+    // Per channel, its best time constant and what it explains in noise variances.
+    let best: Vec<Option<(usize, f64)>> = (0..n_taps)
+        .map(|tap| {
+            let noise_var = regression::difference_noise_var(&segments_of(runs, tap), None).max(f64::MIN_POSITIVE);
+            per_tau
+                .iter()
+                .enumerate()
+                // A lag, not a lead: the reading follows the expectation late (positive gain).
+                .filter_map(|(tau_idx, fits)| {
+                    fits[tap]
+                        .as_ref()
+                        .filter(|fit| fit.beta.first().is_some_and(|gain| *gain > 0.0))
+                        .map(|fit| (tau_idx, fit.explained_per_sample() / noise_var))
+                })
+                .max_by(|a, b| a.1.total_cmp(&b.1))
+        })
+        .collect();
     // The channels that stand out: a lag of some channels leaves the others' innovations
     // alone, while a common-mode change of every pressure (q fluctuation, a model error) shows
     // in all of them alike and is no lag of these channels.
@@ -187,47 +205,8 @@ fn lag_findings(runs: &[RunStreams], n_taps: usize, best: &[Option<(usize, f64)>
     let taus: Vec<(usize, f64)> = lagged.iter().map(|&(tap, tau_idx)| (tap, grid[tau_idx])).collect();
     let mut finding = lag_finding(&segments, &columns, &fit, &taus, 2 * lagged.len());
     // The choice of the channels costs ln C(n, k).
-    finding.delta_bic -= super::pressure_lag::ln_choose(n_taps, lagged.len());
+    finding.delta_bic -= (1..=lagged.len()).map(|i| ((n_taps - lagged.len() + i) as f64 / i as f64).ln()).sum::<f64>();
     vec![finding]
-}
-
-/// Per channel: the index of its best time constant on [`lag_grid`] and what that lag explains
-/// of its innovation, in noise variances (`None` where no lag, only a lead, fits).
-fn channel_lags(runs: &[RunStreams], n_taps: usize) -> Vec<Option<(usize, f64)>> {
-    let Some(sample_hz) = runs.first().map(|run| run.sample_hz) else {
-        return vec![None; n_taps];
-    };
-    let grid = lag_grid(sample_hz);
-    // Per channel and grid point: the fit.
-    let per_tau: Vec<Vec<Option<regression::Fit>>> = grid
-        .iter()
-        .map(|&tau_s| {
-            (0..n_taps)
-                .map(|tap| {
-                    let segments = segments_of(runs, tap);
-                    let columns: Vec<Vec<Vec<f64>>> =
-                        runs.iter().map(|run| vec![lag_column(run, tap, tau_s)]).collect();
-                    regression::fit_through_origin(&segments, &columns)
-                })
-                .collect()
-        })
-        .collect();
-    (0..n_taps)
-        .map(|tap| {
-            let noise_var = regression::difference_noise_var(&segments_of(runs, tap), None).max(f64::MIN_POSITIVE);
-            per_tau
-                .iter()
-                .enumerate()
-                // A lag, not a lead: the reading follows the expectation late (positive gain).
-                .filter_map(|(tau_idx, fits)| {
-                    fits[tap]
-                        .as_ref()
-                        .filter(|fit| fit.beta.first().is_some_and(|gain| *gain > 0.0))
-                        .map(|fit| (tau_idx, fit.explained_per_sample() / noise_var))
-                })
-                .max_by(|a, b| a.1.total_cmp(&b.1))
-        })
-        .collect()
 }
 
 fn lag_finding(
@@ -958,7 +937,7 @@ mod tests {
         let grid = lag_grid(HZ);
         let tau_s = grid[10];
         let run = lagged(9, &[4], tau_s);
-        let found = lag_findings(std::slice::from_ref(&run), TAPS, &channel_lags(std::slice::from_ref(&run), TAPS));
+        let found = lag_findings(std::slice::from_ref(&run), TAPS);
         assert_eq!(found.len(), 1);
         let finding = &found[0];
         assert_eq!(finding.effect, Effect::PressureLag);
@@ -976,7 +955,7 @@ mod tests {
     fn a_lag_of_some_channels_names_exactly_those_channels() {
         let grid = lag_grid(HZ);
         let run = lagged(10, &[1, 4, 6, 9, 11], grid[12]);
-        let found = lag_findings(std::slice::from_ref(&run), TAPS, &channel_lags(std::slice::from_ref(&run), TAPS));
+        let found = lag_findings(std::slice::from_ref(&run), TAPS);
         assert_eq!(found.len(), 1);
         let finding = &found[0];
         assert_eq!(finding.channel, None);
@@ -994,8 +973,6 @@ mod tests {
     fn a_lag_of_every_channel_is_not_an_innovation_finding() {
         let every: &'static [usize] = &[0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11];
         let run = lagged(11, every, lag_grid(HZ)[10]);
-        assert!(
-            lag_findings(std::slice::from_ref(&run), TAPS, &channel_lags(std::slice::from_ref(&run), TAPS)).is_empty()
-        );
+        assert!(lag_findings(std::slice::from_ref(&run), TAPS).is_empty());
     }
 }
