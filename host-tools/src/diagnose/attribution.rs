@@ -243,7 +243,7 @@ pub const REMAINDER_PROBE_GROUPS: [&str; 3] = ["static_nonlinearity", "moment_no
 const PROBE_TAUS_S: [f64; 3] = [0.02, 0.2, 2.0];
 
 /// A typical roll moment coefficient of the wing (domain-models.md: |C_l| stays under about
-/// 0.06): the unit of the moment's powers in the static-nonlinearity probe.
+/// 0.06): the unit of the moment's powers in the `moment_nonlinearity` probe.
 const TYPICAL_MOMENT: f64 = 0.05;
 
 /// Columns of one probe group (see [`PROBE_GROUPS`]): odd powers of the roll angle, rate
