@@ -87,7 +87,7 @@ impl BalanceCandidate for VortexLag {
             .into_iter()
             .filter(|tau_s| *tau_s >= context.slow_tau_min_s)
             .flat_map(|tau_s| {
-                [Drive::Sideslip, Drive::RollRate].into_iter().flat_map(move |drive| {
+                Drive::ALL.into_iter().flat_map(move |drive| {
                     [SlowLaw::State, SlowLaw::Deficit].map(move |law| Shape::SlowState { tau_s, drive, law })
                 })
             })
@@ -103,6 +103,7 @@ impl BalanceCandidate for VortexLag {
         let dt_s = 1.0 / run.sample_hz;
         let input: Vec<f64> = match drive {
             Drive::RollRate => context.p_hat(run),
+            Drive::RollAngle => run.phi_rad.clone(),
             Drive::Sideslip => {
                 let alpha = run.alpha_deg.to_radians();
                 run.phi_rad.iter().map(|phi| (alpha.sin() * phi.sin()).asin()).collect()
@@ -119,6 +120,7 @@ impl BalanceCandidate for VortexLag {
     fn params(&self, shape: &Shape, beta: &[f64], _context: &Context<'_>, _columns: &[Vec<Vec<f64>>]) -> Params {
         let per_drive = match shape {
             Shape::SlowState { drive: Drive::RollRate, .. } => "per_unit_p_hat",
+            Shape::SlowState { drive: Drive::RollAngle, .. } => "per_rad_roll",
             _ => "per_rad_sideslip",
         };
         gains(&["share_of_egk_moment", per_drive], beta)
@@ -249,9 +251,9 @@ mod tests {
     }
 
     /// Every vortex-lag form is slower than the context's floor and at most 5 s, and each time
-    /// constant comes with both drives.
+    /// constant comes with every drive.
     #[test]
-    fn vortex_lag_forms_are_slow_and_cover_both_drives() {
+    fn vortex_lag_forms_are_slow_and_cover_every_drive() {
         let context = test_context();
         let shapes = VortexLag.shapes(200.0, &context);
         let taus: Vec<f64> = shapes
@@ -264,7 +266,11 @@ mod tests {
         assert!(taus.iter().all(|tau| (context.slow_tau_min_s..=5.0 + 1e-9).contains(tau)));
         assert!(taus.iter().any(|tau| (tau - 5.0).abs() < 1e-9), "reaches 5 s");
         let sideslip = shapes.iter().filter(|s| matches!(s, Shape::SlowState { drive: Drive::Sideslip, .. })).count();
-        assert_eq!(2 * sideslip, shapes.len());
+        assert_eq!(Drive::ALL.len() * sideslip, shapes.len());
+        for drive in Drive::ALL {
+            let count = shapes.iter().filter(|s| matches!(s, Shape::SlowState { drive: d, .. } if *d == drive)).count();
+            assert_eq!(count, sideslip, "{drive:?}");
+        }
     }
 
     /// A second state driven by the sideslip, `0.02 LP_0.8s[beta]`, is found by profiling the

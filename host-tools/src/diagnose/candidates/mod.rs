@@ -205,6 +205,14 @@ pub enum Drive {
     Sideslip,
     /// The reduced roll rate `p b / (2 U)`.
     RollRate,
+    /// The roll angle itself, one gain at every angle of attack (a state that follows the
+    /// attitude, not the sideslip it makes at incidence).
+    RollAngle,
+}
+
+impl Drive {
+    /// Every drive of the slow state.
+    pub const ALL: [Self; 3] = [Self::Sideslip, Self::RollRate, Self::RollAngle];
 }
 
 impl Drive {
@@ -214,6 +222,7 @@ impl Drive {
         match self {
             Self::Sideslip => "sideslip",
             Self::RollRate => "roll_rate",
+            Self::RollAngle => "roll_angle",
         }
     }
 }
