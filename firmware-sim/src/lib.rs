@@ -14,7 +14,9 @@
 //! - [`sil`] (std): the estimator and controller in closed loop with the tunnel; [`fault`] (std):
 //!   sensor faults injected into the estimator's inputs, in SIL runs and replays;
 //! - [`io`], [`frames`] (no_std): the firmware's I/O traits and fixed-rate loop, and the binary
-//!   sample records the QEMU replay exchanges through semihosting;
+//!   sample records the QEMU replay exchanges through semihosting; [`link`] (no_std): the serial
+//!   protocol of the real-time loop; [`drivers`] (no_std): the I/O traits bound to embedded-hal
+//!   SPI and PWM;
 //! - `src/bin/firmware.rs` (feature `target`): the STM32F405 firmware.
 #![cfg_attr(not(feature = "std"), no_std)]
 #![deny(missing_docs)]
@@ -28,12 +30,14 @@ pub mod atomic;
 pub mod campaign;
 #[cfg(feature = "std")]
 pub mod dataset;
+pub mod drivers;
 #[cfg(feature = "std")]
 pub mod effect;
 #[cfg(feature = "std")]
 pub mod fault;
 pub mod frames;
 pub mod io;
+pub mod link;
 #[cfg(feature = "std")]
 pub mod sil;
 #[cfg(feature = "std")]

@@ -21,6 +21,7 @@ pub mod codegen;
 pub mod diagnose;
 pub mod evaluate;
 pub mod fit;
+pub mod hil;
 pub mod model;
 pub mod plot;
 pub mod qemu;

@@ -41,6 +41,8 @@ enum Command {
     Sil(SilArgs),
     /// Build the firmware, replay one run in QEMU (STM32F405) and compare with the host replay.
     QemuReplay(QemuReplayArgs),
+    /// Hardware-in-the-loop: the firmware's 1 kHz loop in QEMU, fed runs over its serial link.
+    Hil(HilArgs),
     /// Sim-to-real gap diagnosis: where the gap lies, which effect causes it, how far it shrinks.
     Diagnose(DiagnoseArgs),
     /// Blind campaign: seeded cases with known effects, diagnosed without the answer, scored.
@@ -118,6 +120,28 @@ struct QemuReplayArgs {
     /// of a coefficient set loaded at run time).
     #[arg(long)]
     interpreted: bool,
+}
+
+#[derive(Debug, clap::Args)]
+struct HilArgs {
+    /// Dataset folder (or its manifest.toml).
+    #[arg(long)]
+    data: PathBuf,
+    /// A run: its file as written in the manifest (e.g. runs/rollact_a20.csv); repeat it for
+    /// several; without it, every run of the dataset.
+    #[arg(long)]
+    run: Vec<PathBuf>,
+    /// Stream only the first N samples of each run.
+    #[arg(long)]
+    samples: Option<usize>,
+    /// Send this model folder's coefficient blob (model.bin) over the link before the run;
+    /// without it the firmware flies its built-in tables.
+    #[arg(long)]
+    model: Option<PathBuf>,
+    /// Folder for hil.json, summary.txt and the firmware's defmt logs (written completely or
+    /// not at all).
+    #[arg(long)]
+    out: PathBuf,
 }
 
 #[derive(Debug, clap::Args)]
@@ -263,6 +287,7 @@ fn main() -> ExitCode {
         Command::Evaluate(args) => evaluate(args),
         Command::Sil(args) => sil(args),
         Command::QemuReplay(args) => qemu_replay(args),
+        Command::Hil(args) => hil(args),
         Command::Diagnose(args) => diagnose(args),
         Command::ValidateDiagnosis(args) => validate_diagnosis(args),
         Command::Faults(args) => faults(args),
@@ -576,6 +601,57 @@ fn qemu_replay(args: QemuReplayArgs) -> anyhow::Result<()> {
         std::fs::write(tmp.join("summary.txt"), &summary).context("writing summary.txt")
     })?;
     print!("{summary}");
+    Ok(())
+}
+
+/// `hil`: the firmware's real-time loop in QEMU against the host's loop, run by run.
+fn hil(args: HilArgs) -> anyhow::Result<()> {
+    let dataset = firmware_sim::dataset::load_dataset(&args.data)?;
+    let runs: Vec<&firmware_sim::dataset::Run> = if args.run.is_empty() {
+        dataset.runs.iter().collect()
+    } else {
+        args.run
+            .iter()
+            .map(|file| {
+                dataset
+                    .runs
+                    .iter()
+                    .find(|run| run.meta.file == *file)
+                    .with_context(|| format!("no run {} in {}", file.display(), args.data.display()))
+            })
+            .collect::<anyhow::Result<_>>()?
+    };
+    let blob = match &args.model {
+        Some(dir) => {
+            let file = dir.join("model.bin");
+            let bytes = std::fs::read(&file).with_context(|| format!("reading the blob {}", file.display()))?;
+            Some((file, bytes))
+        }
+        None => None,
+    };
+    let (mut text, mut totals) = (String::new(), String::new());
+    firmware_sim::atomic::write_folder::<anyhow::Error>(&args.out, "hil.json", |tmp| {
+        let mut results = Vec::new();
+        for run in &runs {
+            let stem = run.meta.file.file_stem().map_or_else(|| "run".into(), |s| s.to_string_lossy().into_owned());
+            let dir = tmp.join(&stem);
+            std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+            let samples = host_tools::hil::samples_of(run, args.samples);
+            let blob = blob.as_ref().map(|(file, bytes)| (file.as_path(), bytes.as_slice()));
+            let result = host_tools::hil::hil(&run.meta.file, &samples, blob, &dir)
+                .with_context(|| format!("hil of {}", run.meta.file.display()))?;
+            let summary = host_tools::hil::summary(&result);
+            eprint!("{summary}");
+            text.push_str(&summary);
+            results.push(result);
+        }
+        totals = host_tools::hil::totals(&results);
+        text.push_str(&totals);
+        std::fs::write(tmp.join("summary.txt"), &text).context("writing summary.txt")?;
+        let json = serde_json::json!({ "runs": results, "totals": host_tools::hil::totals_json(&results) });
+        std::fs::write(tmp.join("hil.json"), serde_json::to_string_pretty(&json)?).context("writing hil.json")
+    })?;
+    print!("{totals}");
     Ok(())
 }
 

@@ -49,8 +49,8 @@ pub enum SparseCode {
 pub fn build_firmware(code: SparseCode) -> anyhow::Result<PathBuf> {
     let root = workspace_root();
     let (folder, features) = match code {
-        SparseCode::Compiled => ("firmware", "target"),
-        SparseCode::Interpreted => ("firmware-interpreted", "target,interpreted"),
+        SparseCode::Compiled => ("firmware", "qemu"),
+        SparseCode::Interpreted => ("firmware-interpreted", "qemu,interpreted"),
     };
     let target_dir = root.join("target").join(folder);
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());

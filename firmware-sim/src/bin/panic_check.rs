@@ -34,6 +34,8 @@ mod board {
     use cortex_m_rt::entry;
     use estimator_core::coeffs::N_TAPS;
     use estimator_core::{CoefficientSet, Estimator, Input};
+    // The device crate's interrupt vectors, which cortex-m-rt's `device` feature links against.
+    use stm32f4 as _;
 
     /// The compiled-in coefficient tables, as the firmware flies them.
     static SET: CoefficientSet = estimator_core::coeffs::DEFAULT;
