@@ -383,8 +383,18 @@ pub fn validate(set: &CoefficientSet) -> Result<(), BlobError> {
     ensure(set.controller.cmu_max > 0.0, "controller.cmu_max must be > 0")?;
 
     for (response, delay_what, pole_what, gain_what) in [
-        (&set.actuator[0], "actuator[0].delay_steps must be < DEMAND_SLOTS", "actuator[0].pole must be in [0, 1)", "actuator[0].gain must be in (0, 10]"),
-        (&set.actuator[1], "actuator[1].delay_steps must be < DEMAND_SLOTS", "actuator[1].pole must be in [0, 1)", "actuator[1].gain must be in (0, 10]"),
+        (
+            &set.actuator[0],
+            "actuator[0].delay_steps must be < DEMAND_SLOTS",
+            "actuator[0].pole must be in [0, 1)",
+            "actuator[0].gain must be in (0, 10]",
+        ),
+        (
+            &set.actuator[1],
+            "actuator[1].delay_steps must be < DEMAND_SLOTS",
+            "actuator[1].pole must be in [0, 1)",
+            "actuator[1].gain must be in (0, 10]",
+        ),
     ] {
         ensure(usize::from(response.delay_steps) < DEMAND_SLOTS, delay_what)?;
         ensure((0.0..1.0).contains(&response.pole), pole_what)?;
@@ -1105,6 +1115,10 @@ mod tests {
         assert_eq!(validate(&set), Ok(()));
         set.n_alpha = 1;
         set.alpha_schedule_deg[1] = -90.0;
+        assert_eq!(validate(&set), Ok(()));
+        // The longest dead time, no lag, the largest gain, a range of one value, the limits.
+        set.actuator[0] = ActuatorResponse { delay_steps: (DEMAND_SLOTS - 1) as u8, pole: 0.0, gain: 10.0 };
+        set.envelope = Envelope { cl_roll: [0.02, 0.02], cl: [-ENVELOPE_LIMIT, ENVELOPE_LIMIT] };
         assert_eq!(validate(&set), Ok(()));
     }
 

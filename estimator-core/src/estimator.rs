@@ -587,7 +587,8 @@ mod tests {
         set.plant = crate::prior::PRIOR.plant;
         set.actuator[0] = ActuatorResponse { delay_steps: 5, pole: 0.72, gain: 1.0 };
         let (demands, cmu) = valve_run(&set, 4000);
-        let (mut measured, mut predicted, mut held) = (Estimator::new(&set), Estimator::new(&set), Estimator::new(&set));
+        let (mut measured, mut predicted, mut held) =
+            (Estimator::new(&set), Estimator::new(&set), Estimator::new(&set));
         let (mut worst_predicted, mut worst_held) = (0.0f32, 0.0f32);
         for step in 0..demands.len() {
             let mut input = normal_input(step);

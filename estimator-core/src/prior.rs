@@ -9,8 +9,9 @@
 //! (issue 15): a prior equal to the tunnel starts a fit on it at its truth.
 
 use crate::coeffs::{
-    ActuatorResponse, CoefficientSet, ControllerParams, Envelope, EgkParams, FusionParams, MAX_VARS, N_ALPHA, N_PLANT_VARS, N_PRESSURE_INPUTS,
-    N_TAPS, PRESSURE_RANK, PlantParams, PressureModel, RateFilter, SCHEMA_VERSION, coupling_var, plant_var,
+    ActuatorResponse, CoefficientSet, ControllerParams, EgkParams, Envelope, FusionParams, MAX_VARS, N_ALPHA,
+    N_PLANT_VARS, N_PRESSURE_INPUTS, N_TAPS, PRESSURE_RANK, PlantParams, PressureModel, RateFilter, SCHEMA_VERSION,
+    coupling_var, plant_var,
 };
 use crate::sparse::{Monomial, ONE_FACTOR, SparseModel, Term};
 

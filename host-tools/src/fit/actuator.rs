@@ -186,7 +186,8 @@ fn one_step(data: &JetData<'_>, delay: usize) -> Option<(f64, f64, f64)> {
             if !(y.is_finite() && x.is_finite() && u.is_finite()) {
                 continue;
             }
-            (sxx, sxu, suu, sxy, suy, syy) = (sxx + x * x, sxu + x * u, suu + u * u, sxy + x * y, suy + u * y, syy + y * y);
+            (sxx, sxu, suu, sxy, suy, syy) =
+                (sxx + x * x, sxu + x * u, suu + u * u, sxy + x * y, suy + u * y, syy + y * y);
             n += 1;
         }
     }
@@ -280,13 +281,15 @@ mod tests {
     /// A first-order-plus-dead-time valve with multiplicative noise, on a sequence of holds.
     fn valve(delay: usize, pole: f64, gain: f64, n: usize) -> (Vec<f64>, Vec<f64>) {
         let command: Vec<f64> = (0..n).map(|k| [0.0, 0.006, 0.002, 0.009, 0.004][(k / 173) % 5]).collect();
-        let mut measured = vec![0.0; n];
         let mut state = 0.0;
-        for k in 0..n {
-            measured[k] = state * (1.0 + 0.005 * ((k as f64 * 12.9898).sin() * 43758.5453).fract());
-            let delayed = k.checked_sub(delay).map_or(0.0, |idx| command[idx]);
-            state = pole * state + (1.0 - pole) * gain * delayed;
-        }
+        let measured = (0..n)
+            .map(|k| {
+                let value = state * (1.0 + 0.005 * ((k as f64 * 12.9898).sin() * 43758.5453).fract());
+                let delayed = k.checked_sub(delay).map_or(0.0, |idx| command[idx]);
+                state = pole * state + (1.0 - pole) * gain * delayed;
+                value
+            })
+            .collect();
         (measured, command)
     }
 
