@@ -20,8 +20,9 @@
 use core::fmt;
 
 use crate::coeffs::{
-    CoefficientSet, ControllerParams, EgkParams, FusionParams, MAX_DEGREE, MAX_TERMS, MAX_VARS, N_ALPHA,
-    N_PRESSURE_INPUTS, N_TAPS, PRESSURE_RANK, PlantParams, PressureModel, RateFilter, SCHEMA_VERSION,
+    ActuatorResponse, CoefficientSet, ControllerParams, DEMAND_SLOTS, EgkParams, Envelope, FusionParams, MAX_DEGREE,
+    MAX_TERMS, MAX_VARS, N_ALPHA, N_PRESSURE_INPUTS, N_TAPS, PRESSURE_RANK, PlantParams, PressureModel, RateFilter,
+    SCHEMA_VERSION,
 };
 use crate::sparse::{Monomial, SparseModel, Term};
 
@@ -41,12 +42,12 @@ pub const HEADER_LEN: usize = 20;
 /// Written by hand (const string formatting does not exist); a unit test checks that the
 /// numbers in it are the current values of the constants. Update it with any change of a field
 /// or size: its hash, [`SCHEMA_HASH`], is what makes an old blob fail to load.
-pub const SCHEMA: &str = "rlcs coefficient set; schema_version=5; \
+pub const SCHEMA: &str = "rlcs coefficient set; schema_version=6; \
     N_TAPS=12; PRESSURE_RANK=10; N_PRESSURE_INPUTS=5; N_ALPHA=8; MAX_TERMS=16; MAX_VARS=6; MAX_DEGREE=3; \
-    N_PLANT_VARS=5; N_COUPLING_VARS=6; \
+    N_PLANT_VARS=5; N_COUPLING_VARS=6; DEMAND_SLOTS=64; \
     CoefficientSet{schema_version:u16,dt_s:f32,rate_filter:RateFilter,alpha_schedule_deg:[f32;N_ALPHA],\
     n_alpha:u8,egk:[EgkParams;N_ALPHA],pressure:PressureModel,fusion:FusionParams,plant:[PlantParams;2],\
-    coupling:SparseModel,controller:ControllerParams}; \
+    coupling:SparseModel,controller:ControllerParams,actuator:[ActuatorResponse;2],envelope:Envelope}; \
     RateFilter{rate_pole:f32,accel_pole:f32}; \
     EgkParams{tau1_s:f32,tau2_s:f32,breakdown_deg:f32,steepness_per_deg:f32,sideslip_gain:f32,\
     clbeta_per_rad:f32,clp:f32,clpdot:f32,clpp:f32,vortex_gain:f32,bias:f32,half_span_time_s:f32}; \
@@ -58,7 +59,9 @@ pub const SCHEMA: &str = "rlcs coefficient set; schema_version=5; \
     SparseModel{terms:[Term;MAX_TERMS],n_terms:u8,gate_threshold:[f32;MAX_VARS]}; \
     Term{coeff:f32,monomial:Monomial}; \
     Monomial{factors:[u8;MAX_DEGREE],gate_mask:u8}; \
-    ControllerParams{causality_pole:f32,feedback_kp:f32,feedback_ki:f32,cmu_max:f32,inversion_iterations:u8}";
+    ControllerParams{causality_pole:f32,feedback_kp:f32,feedback_ki:f32,cmu_max:f32,inversion_iterations:u8}; \
+    ActuatorResponse{delay_steps:u8,pole:f32,gain:f32}; \
+    Envelope{cl_roll:[f32;2],cl:[f32;2]}";
 
 /// FNV-1a (32-bit) hash of [`SCHEMA`], computed at compile time.
 pub const SCHEMA_HASH: u32 = fnv1a_32(SCHEMA.as_bytes());
@@ -85,11 +88,13 @@ const F32_PER_PRESSURE: usize = PRESSURE_RANK * PRESSURE_RANK
     + N_ALPHA;
 /// Every f32 of a [`CoefficientSet`]: `dt_s`, the rate filter, the alpha schedule, the eGK
 /// parameters, the pressure model, the fusion, the two plant models (slow pole, Cmu range
-/// and sparse model) and the coupling, and the controller.
-const N_F32: usize = 1 + 2 + N_ALPHA + N_ALPHA * F32_PER_EGK + F32_PER_PRESSURE + 2 + 2 * 2 + 3 * F32_PER_SPARSE + 4;
-/// Every u8 of a [`CoefficientSet`]: `n_alpha`, `pressure.rank`, the three sparse models and
-/// `controller.inversion_iterations`.
-const N_U8: usize = 1 + 1 + 3 * U8_PER_SPARSE + 1;
+/// and sparse model) and the coupling, the controller, the two actuator responses (pole and
+/// gain) and the envelope.
+const N_F32: usize =
+    1 + 2 + N_ALPHA + N_ALPHA * F32_PER_EGK + F32_PER_PRESSURE + 2 + 2 * 2 + 3 * F32_PER_SPARSE + 4 + 2 * 2 + 4;
+/// Every u8 of a [`CoefficientSet`]: `n_alpha`, `pressure.rank`, the three sparse models,
+/// `controller.inversion_iterations` and the two actuator responses' `delay_steps`.
+const N_U8: usize = 1 + 1 + 3 * U8_PER_SPARSE + 1 + 2;
 /// Every u16 of a [`CoefficientSet`]: `schema_version` and `pressure.isolate_after`.
 const N_U16: usize = 2;
 
@@ -328,7 +333,9 @@ pub fn decode(bytes: &[u8]) -> Result<CoefficientSet, BlobError> {
 /// with the used breakpoints strictly ascending; the used eGK entries need `tau1_s > 0` and
 /// `tau2_s >= 0`; `pressure.rank <= PRESSURE_RANK`, `pressure.gate_sigma > 0` and the
 /// constants the pressure filter derives from its tables are finite; every sparse model has
-/// `n_terms <= MAX_TERMS`; `controller.cmu_max > 0`.
+/// `n_terms <= MAX_TERMS`; `controller.cmu_max > 0`; each actuator response has
+/// `delay_steps < DEMAND_SLOTS`, `pole` in `[0, 1)` and `gain` in `(0, 10]`; each range of the
+/// envelope is ordered (`low <= high`) within `[-ENVELOPE_LIMIT, ENVELOPE_LIMIT]`.
 ///
 /// # Errors
 ///
@@ -373,7 +380,43 @@ pub fn validate(set: &CoefficientSet) -> Result<(), BlobError> {
     ensure(factors_in_table(starboard), "plant[1] factors must be variables or ONE_FACTOR, ascending")?;
     ensure(factors_in_table(&set.coupling), "coupling factors must be variables or ONE_FACTOR, ascending")?;
 
-    ensure(set.controller.cmu_max > 0.0, "controller.cmu_max must be > 0")
+    ensure(set.controller.cmu_max > 0.0, "controller.cmu_max must be > 0")?;
+
+    for (response, delay_what, pole_what, gain_what) in [
+        (
+            &set.actuator[0],
+            "actuator[0].delay_steps must be < DEMAND_SLOTS",
+            "actuator[0].pole must be in [0, 1)",
+            "actuator[0].gain must be in (0, 10]",
+        ),
+        (
+            &set.actuator[1],
+            "actuator[1].delay_steps must be < DEMAND_SLOTS",
+            "actuator[1].pole must be in [0, 1)",
+            "actuator[1].gain must be in (0, 10]",
+        ),
+    ] {
+        ensure(usize::from(response.delay_steps) < DEMAND_SLOTS, delay_what)?;
+        ensure((0.0..1.0).contains(&response.pole), pole_what)?;
+        ensure(response.gain > 0.0 && response.gain <= ACTUATOR_GAIN_LIMIT, gain_what)?;
+    }
+    ensure(envelope_range_ok(set.envelope.cl_roll), "envelope.cl_roll must be ordered within +-ENVELOPE_LIMIT")?;
+    ensure(envelope_range_ok(set.envelope.cl), "envelope.cl must be ordered within +-ENVELOPE_LIMIT")
+}
+
+/// Largest actuator gain accepted: a jet that blows ten times its demand is a broken fit, not a
+/// valve.
+const ACTUATOR_GAIN_LIMIT: f32 = 10.0;
+
+/// Largest |bound| of an envelope range: a roll moment coefficient of 1 is a hundred times the
+/// authority of a trailing-edge jet and about 17 times the largest moment of the paper's wing
+/// (0.06), and keeps the margin's arithmetic far from overflow.
+pub const ENVELOPE_LIMIT: f32 = 1.0;
+
+/// An envelope range `[low, high]` is ordered and within [`ENVELOPE_LIMIT`].
+fn envelope_range_ok(range: [f32; 2]) -> bool {
+    let [low, high] = range;
+    -ENVELOPE_LIMIT <= low && low <= high && high <= ENVELOPE_LIMIT
 }
 
 /// The estimator runs its pressure loops over the full size, so modes past `rank` must be zero
@@ -420,6 +463,8 @@ fn check_all_finite(set: &CoefficientSet) -> Result<(), BlobError> {
         plant,
         coupling,
         controller,
+        actuator,
+        envelope,
     } = set;
     all_finite(&[*dt_s], "dt_s is not finite")?;
 
@@ -500,7 +545,16 @@ fn check_all_finite(set: &CoefficientSet) -> Result<(), BlobError> {
     all_finite(&[*causality_pole], "controller.causality_pole is not finite")?;
     all_finite(&[*feedback_kp], "controller.feedback_kp is not finite")?;
     all_finite(&[*feedback_ki], "controller.feedback_ki is not finite")?;
-    all_finite(&[*cmu_max], "controller.cmu_max is not finite")
+    all_finite(&[*cmu_max], "controller.cmu_max is not finite")?;
+
+    for response in actuator {
+        let ActuatorResponse { delay_steps: _, pole, gain } = response;
+        all_finite(&[*pole], "actuator.pole is not finite")?;
+        all_finite(&[*gain], "actuator.gain is not finite")?;
+    }
+    let Envelope { cl_roll, cl } = envelope;
+    all_finite(cl_roll, "envelope.cl_roll is not finite")?;
+    all_finite(cl, "envelope.cl is not finite")
 }
 
 /// Every f32 of a sparse model: all term coefficients (used or not) and the gate thresholds.
@@ -636,6 +690,11 @@ mod tests {
                 cmu_max: seq.next(),
                 inversion_iterations: 24,
             },
+            actuator: [
+                ActuatorResponse { delay_steps: 5, pole: 0.7, gain: 0.98 },
+                ActuatorResponse { delay_steps: 6, pole: 0.75, gain: 1.02 },
+            ],
+            envelope: Envelope { cl_roll: [-0.05, 0.0625], cl: [-0.0625, 0.075] },
         }
     }
 
@@ -692,6 +751,8 @@ mod tests {
                 cmu_max: big,
                 inversion_iterations: u8::MAX,
             },
+            actuator: [ActuatorResponse { delay_steps: u8::MAX, pole: big, gain: big }; 2],
+            envelope: Envelope { cl_roll: [big; 2], cl: [big; 2] },
         }
     }
 
@@ -725,6 +786,7 @@ mod tests {
             ("MAX_VARS", MAX_VARS),
             ("N_PLANT_VARS", N_PLANT_VARS),
             ("N_COUPLING_VARS", N_COUPLING_VARS),
+            ("DEMAND_SLOTS", DEMAND_SLOTS),
         ] {
             let entry = format!("; {name}={value};");
             assert!(SCHEMA.contains(&entry), "SCHEMA lacks `{entry}`: update it (and the layout) for the new size");
@@ -816,6 +878,12 @@ mod tests {
         let c = &set.controller;
         w.f32s(&[c.causality_pole, c.feedback_kp, c.feedback_ki, c.cmu_max]);
         w.u8(c.inversion_iterations);
+        for response in &set.actuator {
+            w.u8(response.delay_steps);
+            w.f32s(&[response.pole, response.gain]);
+        }
+        w.f32s(&set.envelope.cl_roll);
+        w.f32s(&set.envelope.cl);
 
         let blob = valid_blob();
         assert_eq!(&blob[HEADER_LEN..], w.0.as_slice());
@@ -981,7 +1049,7 @@ mod tests {
     #[test]
     fn blob_validate_rejects_bad_values() {
         type Corruption = (fn(&mut CoefficientSet), &'static str);
-        let cases: [Corruption; 23] = [
+        let cases: [Corruption; 33] = [
             (|s| s.schema_version = SCHEMA_VERSION + 1, "schema_version differs from this build's SCHEMA_VERSION"),
             (|s| s.pressure.gain[9][11] = f32::NAN, "pressure.gain is not finite"),
             (|s| s.pressure.a[0][0] = f32::INFINITY, "pressure.a is not finite"),
@@ -1017,6 +1085,16 @@ mod tests {
                 |s| s.plant[1].model.terms[0].monomial.factors = [2, 1, ONE_FACTOR],
                 "plant[1] factors must be variables or ONE_FACTOR, ascending",
             ),
+            (|s| s.actuator[0].pole = f32::NAN, "actuator.pole is not finite"),
+            (|s| s.actuator[1].gain = f32::INFINITY, "actuator.gain is not finite"),
+            (|s| s.actuator[0].delay_steps = DEMAND_SLOTS as u8, "actuator[0].delay_steps must be < DEMAND_SLOTS"),
+            (|s| s.actuator[1].pole = 1.0, "actuator[1].pole must be in [0, 1)"),
+            (|s| s.actuator[0].pole = -0.1, "actuator[0].pole must be in [0, 1)"),
+            (|s| s.actuator[1].gain = 0.0, "actuator[1].gain must be in (0, 10]"),
+            (|s| s.actuator[0].gain = 10.5, "actuator[0].gain must be in (0, 10]"),
+            (|s| s.envelope.cl[1] = f32::NAN, "envelope.cl is not finite"),
+            (|s| s.envelope.cl_roll = [0.01, -0.01], "envelope.cl_roll must be ordered within +-ENVELOPE_LIMIT"),
+            (|s| s.envelope.cl = [-2.0, 0.1], "envelope.cl must be ordered within +-ENVELOPE_LIMIT"),
         ];
         for (corrupt, what) in cases {
             let mut set = valid_set();
@@ -1037,6 +1115,10 @@ mod tests {
         assert_eq!(validate(&set), Ok(()));
         set.n_alpha = 1;
         set.alpha_schedule_deg[1] = -90.0;
+        assert_eq!(validate(&set), Ok(()));
+        // The longest dead time, no lag, the largest gain, a range of one value, the limits.
+        set.actuator[0] = ActuatorResponse { delay_steps: (DEMAND_SLOTS - 1) as u8, pole: 0.0, gain: 10.0 };
+        set.envelope = Envelope { cl_roll: [0.02, 0.02], cl: [-ENVELOPE_LIMIT, ENVELOPE_LIMIT] };
         assert_eq!(validate(&set), Ok(()));
     }
 

@@ -6,9 +6,15 @@
 //! 4. pressure model and Kalman filter ([`crate::pressure`]);
 //! 5. fusion into `C_l,roll` ([`crate::fusion`]);
 //! 6. plant of each jet, `C_l,AFC` ([`crate::plant`]);
-//! 7. linear superposition and the coupling operator ([`crate::coupling`]).
+//! 7. linear superposition and the coupling operator ([`crate::coupling`]);
+//! 8. the envelope: `C_l,roll`, `C_l,linear` and `C_l` kept within the fitted range of roll
+//!    moments with its margin ([`crate::coeffs::Envelope`]).
+//!
+//! Between steps the caller notes the controller's demand ([`Estimator::note_demand`]): a
+//! missing blowing measurement is then predicted from it ([`crate::actuator`]) instead of held.
 
-use crate::coeffs::{CoefficientSet, CompiledDefault, N_PRESSURE_INPUTS, N_TAPS};
+use crate::actuator::DemandHistory;
+use crate::coeffs::{CoefficientSet, CompiledDefault, Envelope, N_PRESSURE_INPUTS, N_TAPS};
 use crate::coupling::{CouplingInput, correction_with};
 use crate::egk::{Egk, EgkInput};
 use crate::fusion::Fusion;
@@ -65,7 +71,8 @@ pub struct Output {
     pub cl_egk: f32,
     /// `C_l,roll` of the pressure path alone.
     pub cl_pressure: f32,
-    /// `C_l,roll`: the fused disturbance estimate.
+    /// `C_l,roll`: the fused disturbance estimate, within the envelope's disturbance range
+    /// with its margin (limited and flagged [`Health::ESTIMATE_LIMITED`] otherwise).
     pub cl_roll: f32,
     /// `C_l,AFC` of the port jet.
     pub cl_afc_port: f32,
@@ -73,11 +80,13 @@ pub struct Output {
     pub cl_afc_stbd: f32,
     /// `C_l,AFC = port + starboard`.
     pub cl_afc: f32,
-    /// Linear superposition `C_l,roll + C_l,AFC`.
+    /// Linear superposition `C_l,roll + C_l,AFC`, within the envelope's total range with its
+    /// margin (limited and flagged otherwise).
     pub cl_linear: f32,
     /// The coupling operator's correction.
     pub coupling: f32,
-    /// `C_l` with the coupling operator: `C_l,linear + coupling`.
+    /// `C_l` with the coupling operator: `C_l,linear + coupling`, within the envelope's total
+    /// range with its margin (limited and flagged otherwise; the sum then no longer holds).
     pub cl: f32,
     /// Filtered roll rate, rad/s.
     pub phi_dot_rad_s: f32,
@@ -146,6 +155,10 @@ pub struct Estimator<'a, E: SparseEval = Interpreted> {
     rate_hz: f32,
     /// Consecutive steps without a roll angle (saturating).
     phi_missing_steps: u16,
+    /// The controller's demands noted after each step.
+    demands: DemandHistory,
+    /// The envelope with its margin, `[low, high]`: of `C_l,roll`, and of `C_l,linear` and `C_l`.
+    bounds: [[f32; 2]; 2],
 }
 
 impl<'a> Estimator<'a> {
@@ -181,6 +194,8 @@ impl<'a, E: SparseEval> Estimator<'a, E> {
             last_cmu_total: 0.0,
             rate_hz: 1.0 / set.dt_s,
             phi_missing_steps: 0,
+            demands: DemandHistory::new(),
+            bounds: [Envelope::with_margin(set.envelope.cl_roll), Envelope::with_margin(set.envelope.cl)],
         }
     }
 
@@ -202,9 +217,21 @@ impl<'a, E: SparseEval> Estimator<'a, E> {
         &self.plants
     }
 
-    /// Returns to the state of a fresh estimator over the same tables.
+    /// Returns to the state of a fresh estimator over the same tables (no demand noted).
     pub fn reset(&mut self) {
         *self = Self::with(self.set, self.eval);
+    }
+
+    /// Notes the controller's Cmu demand `[port, starboard]` of this step: call it once per
+    /// step, after [`Estimator::step`] and the controller, with what goes to the valves (a host
+    /// replay passes the recorded command). From the first call on, a step whose measured Cmu is
+    /// missing runs the plant on the jet's Cmu predicted from the demands through the fitted
+    /// [`crate::coeffs::ActuatorResponse`] (flag [`Health::CMU_FROM_DEMAND`]); without any
+    /// call, the last measured Cmu is held ([`Health::CMU_HELD`]). The demand is limited to the
+    /// accepted Cmu range; a non-finite one repeats the jet's previous demand. It changes no
+    /// output while the Cmu is measured. Constant time (two stores); never panics.
+    pub fn note_demand(&mut self, cmu_demand: [f32; 2]) {
+        self.demands.note(cmu_demand, CMU_LIMIT);
     }
 
     /// One fixed step. Never panics; a missing or non-finite input is held and flagged, and no
@@ -253,7 +280,9 @@ impl<'a, E: SparseEval> Estimator<'a, E> {
                 0.0
             }
         };
-        let cl_linear = cl_roll + cl_afc;
+        let [roll_bounds, total_bounds] = self.bounds;
+        let cl_roll = limit_to(cl_roll, roll_bounds, &mut health);
+        let cl_linear = limit_to(cl_roll + cl_afc, total_bounds, &mut health);
         Output {
             cl_egk,
             cl_pressure: pressure.cl,
@@ -263,7 +292,7 @@ impl<'a, E: SparseEval> Estimator<'a, E> {
             cl_afc,
             cl_linear,
             coupling,
-            cl: cl_linear + coupling,
+            cl: limit_to(cl_linear + coupling, total_bounds, &mut health),
             phi_dot_rad_s: rates.phi_dot_rad_s,
             health,
         }
@@ -298,6 +327,37 @@ impl<'a, E: SparseEval> Estimator<'a, E> {
         take(input.alpha_deg, ALPHA_LIMIT_DEG, -ALPHA_LIMIT_DEG, &mut self.held.alpha_deg, Health::ALPHA_HELD);
         take(input.cmu_port, CMU_LIMIT, 0.0, &mut self.held.cmu[0], Health::CMU_HELD);
         take(input.cmu_stbd, CMU_LIMIT, 0.0, &mut self.held.cmu[1], Health::CMU_HELD);
+        self.cmu_from_demand([input.cmu_port, input.cmu_stbd], health);
+    }
+
+    /// A missing Cmu, once a demand was noted: the jet's Cmu predicted from its previous one
+    /// (measured or predicted) and the demands, limited to the accepted range, in place of the
+    /// held value, flagged [`Health::CMU_FROM_DEMAND`]; [`Health::CMU_HELD`] stays only for a
+    /// jet whose prediction is not finite (tables no validation would pass), which keeps its
+    /// held value.
+    fn cmu_from_demand(&mut self, measured: [f32; 2], health: &mut Health) {
+        if !self.demands.noted() || measured.iter().all(|cmu| cmu.is_finite()) {
+            return;
+        }
+        let (mut any_predicted, mut any_held) = (false, false);
+        for (side, (held, response)) in self.held.cmu.iter_mut().zip(&self.set.actuator).enumerate() {
+            if measured.get(side).is_some_and(|cmu| cmu.is_finite()) {
+                continue;
+            }
+            let predicted = self.demands.predict(response, side, *held);
+            if predicted.is_finite() {
+                *held = crate::min_num(crate::max_num(predicted, 0.0), CMU_LIMIT);
+                any_predicted = true;
+            } else {
+                any_held = true;
+            }
+        }
+        if any_predicted {
+            health.set(Health::CMU_FROM_DEMAND);
+        }
+        if !any_held {
+            health.flags &= !Health::CMU_HELD;
+        }
     }
 
     fn egk_input(&self, phi_rad: f32, rates: &RollRates) -> EgkInput {
@@ -313,6 +373,17 @@ impl<'a, E: SparseEval> Estimator<'a, E> {
     fn pressure_inputs(&self, phi_rad: f32, rates: &RollRates) -> [f32; N_PRESSURE_INPUTS] {
         [phi_rad, rates.phi_dot_rad_s, self.held.cmu[0], self.held.cmu[1], 1.0]
     }
+}
+
+/// `value` within `bounds` (`[low, high]`); outside them (or NaN) it is limited to the nearer
+/// bound and [`Health::ESTIMATE_LIMITED`] is set. A value within them passes bit for bit.
+fn limit_to(value: f32, bounds: [f32; 2], health: &mut Health) -> f32 {
+    let [low, high] = bounds;
+    if value >= low && value <= high {
+        return value;
+    }
+    health.set(Health::ESTIMATE_LIMITED);
+    crate::min_num(crate::max_num(value, low), high)
 }
 
 /// Limits the roll rate and acceleration passed on to [`PHI_DOT_LIMIT_RAD_S`] and
@@ -332,6 +403,7 @@ fn limit_rates(rates: RollRates, health: &mut Health) -> RollRates {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::coeffs::ActuatorResponse;
     use crate::prior::full_size_fixture;
     use proptest::prelude::*;
 
@@ -454,6 +526,116 @@ mod tests {
             let mut input = normal_input(step + 700);
             input.phi_deg = 0.0;
             assert_eq!(estimator.step(&input).coupling, 0.0, "no roll: the gated operator is exactly zero");
+        }
+    }
+
+    /// The fixture with an envelope of +-`half_width` for both ranges.
+    fn fixture_with_envelope(half_width: f32) -> CoefficientSet {
+        let mut set = full_size_fixture();
+        set.envelope = Envelope { cl_roll: [-half_width, half_width], cl: [-half_width, half_width] };
+        set
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+
+        /// Issue 16, item 6 (<https://github.com/issues/16>): under garbage every final estimate
+        /// stays within the envelope with its margin, every step at which an unbounded
+        /// estimator (same state, an envelope far wider) leaves it is flagged, and an unflagged
+        /// step passes every estimate bit for bit.
+        #[test]
+        fn issue_16_garbage_never_leaves_the_envelope_and_every_limited_step_is_flagged(
+            garbage in proptest::collection::vec(wild_input(), 1..300),
+        ) {
+            let (narrow_set, wide_set) = (fixture_with_envelope(0.02), fixture_with_envelope(1.0));
+            let (mut narrow, mut wide) = (Estimator::new(&narrow_set), Estimator::new(&wide_set));
+            let [low, high] = Envelope::with_margin(narrow_set.envelope.cl);
+            for (step, input) in (0..400).map(normal_input).chain(garbage.iter().copied()).enumerate() {
+                let (bounded, free) = (narrow.step(&input), wide.step(&input));
+                let flagged = bounded.health.has(Health::ESTIMATE_LIMITED);
+                for (value, unbounded) in
+                    [(bounded.cl_roll, free.cl_roll), (bounded.cl_linear, free.cl_linear), (bounded.cl, free.cl)]
+                {
+                    prop_assert!((low..=high).contains(&value), "step {step}: {value} beyond [{low}, {high}]");
+                    prop_assert!(flagged || (low..=high).contains(&unbounded), "step {step}: {unbounded} not flagged");
+                    prop_assert!(flagged || value.to_bits() == unbounded.to_bits(), "step {step}: changed unflagged");
+                }
+            }
+        }
+    }
+
+    /// The tables' actuator response as the "true" valve: a demand sequence of holds, and the
+    /// Cmu it makes (exactly the response, so the prediction can match it).
+    fn valve_run(set: &CoefficientSet, steps: usize) -> (Vec<f32>, Vec<f32>) {
+        let response = set.actuator[0];
+        let demands: Vec<f32> = (0..steps).map(|step| [0.0, 0.006, 0.002, 0.009][(step / 150) % 4]).collect();
+        let mut cmu = vec![0.0f32; steps];
+        for step in 1..steps {
+            let delayed = step.checked_sub(1 + usize::from(response.delay_steps)).map_or(0.0, |idx| demands[idx]);
+            cmu[step] = response.pole * cmu[step - 1] + (1.0 - response.pole) * response.gain * delayed;
+        }
+        (demands, cmu)
+    }
+
+    /// Issue 16, item 5 (<https://github.com/issues/16>): with the blowing measurement lost
+    /// after 1 s, the plant runs on the Cmu predicted from the demands and follows the plant of
+    /// an estimator that still measures it; holding the last Cmu (no demand noted) does not.
+    #[test]
+    fn issue_16_a_missing_cmu_with_demands_tracks_the_true_cmu_path() {
+        let mut set = full_size_fixture();
+        // The prior's plant: a moment of 0.01 at the largest Cmu (the fixture's is tiny).
+        set.plant = crate::prior::PRIOR.plant;
+        set.actuator[0] = ActuatorResponse { delay_steps: 5, pole: 0.72, gain: 1.0 };
+        let (demands, cmu) = valve_run(&set, 4000);
+        let (mut measured, mut predicted, mut held) =
+            (Estimator::new(&set), Estimator::new(&set), Estimator::new(&set));
+        let (mut worst_predicted, mut worst_held) = (0.0f32, 0.0f32);
+        for step in 0..demands.len() {
+            let mut input = normal_input(step);
+            input.cmu_port = cmu[step];
+            let truth = measured.step(&input);
+            if step >= 1000 {
+                input.cmu_port = f32::NAN;
+            }
+            let (with_demand, without) = (predicted.step(&input), held.step(&input));
+            predicted.note_demand([demands[step], 0.0]);
+            measured.note_demand([demands[step], 0.0]);
+            if step >= 1000 {
+                assert!(with_demand.health.has(Health::CMU_FROM_DEMAND) && !with_demand.health.has(Health::CMU_HELD));
+                assert!(without.health.has(Health::CMU_HELD) && !without.health.has(Health::CMU_FROM_DEMAND));
+                worst_predicted = worst_predicted.max((with_demand.cl_afc_port - truth.cl_afc_port).abs());
+                worst_held = worst_held.max((without.cl_afc_port - truth.cl_afc_port).abs());
+            }
+        }
+        assert!(worst_predicted < 1e-6, "predicted: {worst_predicted:e}");
+        assert!(worst_held > 1e-3, "held: {worst_held:e}");
+    }
+
+    /// The demand changes nothing while the Cmu is measured, and without any demand a missing
+    /// Cmu is held exactly as before the actuator response existed.
+    #[test]
+    fn demands_change_nothing_while_cmu_is_measured_and_without_them_cmu_is_held() {
+        let mut set = full_size_fixture();
+        set.actuator[0] = ActuatorResponse { delay_steps: 3, pole: 0.5, gain: 1.2 };
+        let (mut noting, mut plain) = (Estimator::new(&set), Estimator::new(&set));
+        for step in 0..3000 {
+            let input = normal_input(step);
+            let (a, b) = (noting.step(&input), plain.step(&input));
+            noting.note_demand([0.001 * (step % 9) as f32, f32::NAN]);
+            assert_eq!(a.estimates().map(f32::to_bits), b.estimates().map(f32::to_bits), "step {step}");
+            assert_eq!(a.health, b.health);
+        }
+        // No demand: the held Cmu is the last measured one, as if it were still measured.
+        let (mut plain, mut last_measured) = (Estimator::new(&set), Estimator::new(&set));
+        for step in 0..2000 {
+            let mut input = normal_input(step);
+            let mut reference = input;
+            if step >= 800 {
+                input.cmu_port = f32::NAN;
+                reference.cmu_port = normal_input(799).cmu_port;
+            }
+            let (a, b) = (plain.step(&input), last_measured.step(&reference));
+            assert_eq!(a.estimates().map(f32::to_bits), b.estimates().map(f32::to_bits), "step {step}");
         }
     }
 

@@ -24,7 +24,8 @@ impl Health {
     pub const PHI_HELD: u16 = 1 << 0;
     /// The angle of attack was missing or non-finite; the last valid one was held.
     pub const ALPHA_HELD: u16 = 1 << 1;
-    /// A momentum coefficient was missing or non-finite; the last valid one was held.
+    /// A momentum coefficient was missing or non-finite; the last valid one was held (no
+    /// demand was noted, see [`Health::CMU_FROM_DEMAND`]).
     pub const CMU_HELD: u16 = 1 << 2;
     /// An input was outside its physical range and was clamped.
     pub const INPUT_CLAMPED: u16 = 1 << 3;
@@ -36,8 +37,14 @@ impl Health {
     pub const CMU_SATURATED: u16 = 1 << 6;
     /// The measured roll moment for the feedback was missing; the integrator held.
     pub const FEEDBACK_HELD: u16 = 1 << 7;
-    /// An estimate left its plausible range (far outside the fitted inputs) and was limited.
+    /// An estimate left its plausible range (far outside the fitted inputs) and was limited:
+    /// the coupling correction beyond its limit, or `C_l,roll`, `C_l,linear` or `C_l` beyond the
+    /// fitted envelope with its margin (`crate::coeffs::Envelope`).
     pub const ESTIMATE_LIMITED: u16 = 1 << 8;
+    /// A momentum coefficient was missing or non-finite, and the controller's demand was known
+    /// (`crate::Estimator::note_demand`): the jet's Cmu was predicted from the demands through the
+    /// fitted actuator response (`crate::actuator`). Set instead of [`Health::CMU_HELD`].
+    pub const CMU_FROM_DEMAND: u16 = 1 << 9;
 
     /// True when no flag and no channel bit is set.
     #[must_use]

@@ -20,6 +20,13 @@
 //! Cmu --> plant (port, starboard) ----------------------> C_l,AFC -'
 //! ```
 //!
+//! The final estimates `C_l,roll`, `C_l,linear` and `C_l` are kept within the roll moments the
+//! fit data measured, with a margin ([`coeffs::Envelope`]); a step that had to limit one is
+//! flagged. After each step the caller notes the controller's Cmu demand
+//! ([`Estimator::note_demand`]): when a jet's measured Cmu is missing, the plant then runs on the
+//! Cmu predicted from the demands through the fitted actuator response ([`actuator`]) instead of
+//! the last measured one.
+//!
 //! The stages are the paper's: the extended Goman-Khrabrov model ([`egk`]), the time-shifted
 //! pressure model with its Kalman filter ([`pressure`]) and their fusion ([`fusion`]) form the
 //! disturbance model; the SINDy difference equation of eq. 5 is the plant ([`plant`]); the
@@ -46,6 +53,7 @@
 #![cfg_attr(not(test), no_std)]
 #![deny(unsafe_code, missing_docs)]
 
+pub mod actuator;
 pub mod blob;
 pub mod coeffs;
 pub mod controller;

@@ -9,8 +9,9 @@
 //! (issue 15): a prior equal to the tunnel starts a fit on it at its truth.
 
 use crate::coeffs::{
-    CoefficientSet, ControllerParams, EgkParams, FusionParams, MAX_VARS, N_ALPHA, N_PLANT_VARS, N_PRESSURE_INPUTS,
-    N_TAPS, PRESSURE_RANK, PlantParams, PressureModel, RateFilter, SCHEMA_VERSION, coupling_var, plant_var,
+    ActuatorResponse, CoefficientSet, ControllerParams, EgkParams, Envelope, FusionParams, MAX_VARS, N_ALPHA,
+    N_PLANT_VARS, N_PRESSURE_INPUTS, N_TAPS, PRESSURE_RANK, PlantParams, PressureModel, RateFilter, SCHEMA_VERSION,
+    coupling_var, plant_var,
 };
 use crate::sparse::{Monomial, ONE_FACTOR, SparseModel, Term};
 
@@ -114,6 +115,11 @@ pub const PRIOR: CoefficientSet = CoefficientSet {
         cmu_max: 0.009,
         inversion_iterations: 16,
     },
+    // No actuator dynamics known before a fit: the jet's Cmu is the last demand.
+    actuator: [ActuatorResponse::IDENTITY; 2],
+    // The paper's wing rolls with |C_l| below about 0.06 (the default campaign's balance, the
+    // roll runs at alpha 20 deg); before a fit the envelope is wider than that, +-0.1.
+    envelope: Envelope { cl_roll: [-0.1, 0.1], cl: [-0.1, 0.1] },
 };
 
 const _: () = assert!(N_ALPHA >= 3, "the prior schedules three angles of attack");

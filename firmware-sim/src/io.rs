@@ -103,9 +103,11 @@ impl<'a, E: SparseEval> FixedRateLoop<'a, E> {
         &self.estimator
     }
 
-    /// One step: reads the inputs through `board`, steps the estimator and the controller, and
-    /// writes the demand. The controller cancels the fused disturbance `C_l,roll`; the feedback
-    /// has no balance on the board, so its measurement is NaN (held) when feedback is on.
+    /// One step: reads the inputs through `board`, steps the estimator and the controller, notes
+    /// the demand with the estimator ([`Estimator::note_demand`]: a missing Cmu measurement is
+    /// then predicted from it) and writes it to the valves. The controller cancels the fused
+    /// disturbance `C_l,roll`; the feedback has no balance on the board, so its measurement is
+    /// NaN (held) when feedback is on.
     pub fn step<B: Board, T: TickCounter>(&mut self, board: &mut B, ticks: &mut T) -> StepResult {
         let cp = board.read();
         let phi_deg = board.angle_deg();
@@ -124,6 +126,8 @@ impl<'a, E: SparseEval> FixedRateLoop<'a, E> {
         let (eval, set, plants) = (self.estimator.evaluator(), self.estimator.coefficients(), self.estimator.plants());
         let demand =
             self.controller.step_with(eval, set, plants, &controller_input, self.blocks, &mut controller_health);
+        // The estimator predicts a missing Cmu measurement from what the valves are told.
+        self.estimator.note_demand(demand.cmu);
         let end = ticks.now();
         board.set_cmu(demand.cmu);
         StepResult {
@@ -205,7 +209,12 @@ mod tests {
                 cmu_stbd: f32::NAN,
                 cp: [-0.5; N_TAPS],
             };
-            assert_eq!(result.output, reference.step(&input));
+            let expected = reference.step(&input);
+            assert_eq!(result.output, expected);
+            // The starboard Cmu is missing: from the second step on it is predicted from the
+            // demand the loop noted.
+            assert_eq!(result.output.health.has(Health::CMU_FROM_DEMAND), k > 0);
+            reference.note_demand(result.demand.cmu);
             assert_eq!(board.demands[k], result.demand.cmu);
             assert!(result.demand.cmu.iter().all(|cmu| cmu.is_finite()));
             assert_eq!((result.ticks_estimator, result.ticks_total), (10, 20));

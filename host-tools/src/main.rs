@@ -1018,7 +1018,22 @@ fn soak(args: SoakArgs) -> anyhow::Result<()> {
         outcome.worst_abs_cl,
         outcome.state_resets
     );
-    anyhow::ensure!(outcome.passed(), "the soak failed: an estimate was not finite or left the bound");
+    let [low, high] = outcome.cl_bounds;
+    println!(
+        "envelope: C_l bounds [{low:.4e}, {high:.4e}] (fitted range and margin); worst |C_l| {:.3e} (without the \
+         envelope {:.3e}); steps limited {}, flagged ESTIMATE_LIMITED {}, limited but not flagged {}, beyond the \
+         envelope {}",
+        outcome.worst_abs_cl,
+        outcome.worst_abs_cl_unbounded,
+        outcome.limited_steps,
+        outcome.flagged_steps,
+        outcome.unflagged_limited_steps,
+        outcome.beyond_envelope_steps
+    );
+    anyhow::ensure!(
+        outcome.passed(),
+        "the soak failed: an estimate was not finite, left the bound or the envelope, or was limited unflagged"
+    );
     Ok(())
 }
 

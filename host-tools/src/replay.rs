@@ -22,11 +22,36 @@ pub fn input_at(run: &Run, sample_idx: usize) -> Input {
     }
 }
 
-/// Steps a fresh estimator over every sample of `run`.
+/// The controller's demand at one recorded sample: the recorded commands `cmu_port_cmd` and
+/// `cmu_stbd_cmd` (f32), `None` when the run has neither. A run with one of them commands the
+/// other jet 0.
+#[must_use]
+pub fn demand_at(run: &Run, sample_idx: usize) -> Option<[f32; 2]> {
+    let channels = &run.channels;
+    if channels.cmu_port_cmd.is_none() && channels.cmu_stbd_cmd.is_none() {
+        return None;
+    }
+    let narrow = |column: &Option<Vec<f64>>| {
+        column.as_ref().map_or(0.0, |column| column.get(sample_idx).map_or(f32::NAN, |&value| value as f32))
+    };
+    Some([narrow(&channels.cmu_port_cmd), narrow(&channels.cmu_stbd_cmd)])
+}
+
+/// One replay step at `sample_idx`: the estimator's step on the recorded input, then the recorded
+/// demand noted as the controller's ([`Estimator::note_demand`]), as the firmware's loop does.
+pub fn replay_step(estimator: &mut Estimator<'_>, run: &Run, sample_idx: usize) -> Output {
+    let output = estimator.step(&input_at(run, sample_idx));
+    if let Some(demand) = demand_at(run, sample_idx) {
+        estimator.note_demand(demand);
+    }
+    output
+}
+
+/// Steps a fresh estimator over every sample of `run` ([`replay_step`]).
 #[must_use]
 pub fn replay_run(set: &CoefficientSet, run: &Run) -> Vec<Output> {
     let mut estimator = Estimator::new(set);
-    (0..run.channels.len()).map(|sample_idx| estimator.step(&input_at(run, sample_idx))).collect()
+    (0..run.channels.len()).map(|sample_idx| replay_step(&mut estimator, run, sample_idx)).collect()
 }
 
 /// The marker file of a replay folder.

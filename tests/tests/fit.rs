@@ -133,6 +133,10 @@ fn the_held_out_part_does_not_reach_the_fit() {
             channels.cl[k] = -3.0 * channels.cl[k] + 0.02 * wobble;
             channels.phi_deg[k] += 5.0 * wobble;
             channels.cmu_port[k] *= 1.5;
+            // The actuator response is fitted on the commanded Cmu (issue 16).
+            for command in [&mut channels.cmu_port_cmd, &mut channels.cmu_stbd_cmd].into_iter().flatten() {
+                command[k] = 0.009 * wobble.abs();
+            }
             for tap in &mut channels.cp {
                 tap[k] += 0.3 * wobble;
             }

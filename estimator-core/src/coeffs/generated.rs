@@ -3,13 +3,14 @@
 //! the fit on the default synthetic campaign (host-tools simulate, seed 1; host-tools fit; models/default)
 
 use super::{
-    CoefficientSet, ControllerParams, EgkParams, FusionParams, MAX_VARS, PlantParams, PressureModel, RateFilter,
+    ActuatorResponse, CoefficientSet, ControllerParams, EgkParams, Envelope, FusionParams, MAX_VARS, PlantParams,
+    PressureModel, RateFilter,
 };
 use crate::sparse::{Monomial, SparseModel, Term};
 
 /// The default coefficient set compiled into the estimator: the fit on the default synthetic campaign (host-tools simulate, seed 1; host-tools fit; models/default)
 pub const DEFAULT: CoefficientSet = CoefficientSet {
-    schema_version: 5,
+    schema_version: 6,
     dt_s: 0.001,
     rate_filter: RateFilter { rate_pole: 0.66470826, accel_pole: 0.66470826 },
     alpha_schedule_deg: [0.0, 10.0, 20.0, 21.0, 22.0, 23.0, 24.0, 25.0],
@@ -781,6 +782,11 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
         cmu_max: 0.009,
         inversion_iterations: 16,
     },
+    actuator: [
+        ActuatorResponse { delay_steps: 4, pole: 0.75784606, gain: 1.0001642 },
+        ActuatorResponse { delay_steps: 4, pole: 0.75784606, gain: 1.0001642 },
+    ],
+    envelope: Envelope { cl_roll: [-0.0509789, 0.0528361], cl: [-0.0509789, 0.0549359] },
 };
 
 /// `DEFAULT.plant[0].model` as straight-line code, bit-identical to `SparseModel::eval` of the tables.

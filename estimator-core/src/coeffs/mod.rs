@@ -17,7 +17,7 @@ pub use compiled::{BUILT_IN, CompiledDefault};
 pub use generated::DEFAULT;
 
 /// Version of the coefficient-set layout. Bump it whenever a field or a size changes.
-pub const SCHEMA_VERSION: u16 = 5;
+pub const SCHEMA_VERSION: u16 = 6;
 
 /// Number of upper-surface pressure taps.
 pub const N_TAPS: usize = 12;
@@ -48,6 +48,28 @@ pub const N_PLANT_VARS: usize = 5;
 /// Variables of the coupling operator (paper eqs. 9-11):
 /// `[C_l,roll, C_l,AFC, alpha_rad, Cmu, dCmu, phi_rad]`.
 pub const N_COUPLING_VARS: usize = 6;
+
+/// Slots of the demand history the actuator response reads ([`ActuatorResponse`]): the longest
+/// dead time is `DEMAND_SLOTS - 1` steps (63 ms at 1 kHz). A valve and plenum of a
+/// trailing-edge jet respond within a few ms (the tunnel's valve: 5 ms dead time and a 3 ms
+/// lag, `firmware-sim/src/tunnel/params.rs`); the history is 12 times that, 512 bytes for both
+/// jets. A power of two, so the ring index is a mask.
+pub const DEMAND_SLOTS: usize = 64;
+
+/// Margin of the estimate envelope ([`Envelope`]), as a share of the measured range's span on
+/// each side: the estimator keeps `C_l,roll`, `C_l,linear` and `C_l` within
+/// `[low - ENVELOPE_MARGIN span, high + ENVELOPE_MARGIN span]`.
+///
+/// Why a quarter: the range is the balance's over the training part, so a legitimate estimate
+/// may leave it (the held-out part and later flights move the wing differently, and the
+/// estimate carries its own error). On the default campaign the estimates of every run, held-out
+/// part included, reach at most 0.5 % of the span beyond the training range (`C_l` 0.0554
+/// against 0.0549, span 0.106; `host-tools replay`), fifty times less than this margin, and the
+/// held-out RMS error of `C_l` is 0.3 % of the span. An estimate beyond the margin, 1.5 times
+/// the measured span from one end to the other, is a moment the wing was never seen to make:
+/// the soak's garbage input drove `C_l` to 0.39 before the envelope, 3.7 spans
+/// (`host-tools soak --steps 10000000 --seed 3`).
+pub const ENVELOPE_MARGIN: f32 = 0.25;
 
 /// Index of each plant variable.
 pub mod plant_var {
@@ -104,6 +126,11 @@ pub struct CoefficientSet {
     pub coupling: SparseModel,
     /// Feedforward and feedback controller blocks.
     pub controller: ControllerParams,
+    /// Response of the port and starboard jets' Cmu to the controller's demand: what the plant
+    /// runs on while the blowing measurement is missing.
+    pub actuator: [ActuatorResponse; 2],
+    /// The roll moments the fit data measured: the estimates are kept within it, with a margin.
+    pub envelope: Envelope,
 }
 
 /// First-order filtered differentiators for the roll rate and acceleration from the encoder:
@@ -235,4 +262,53 @@ pub struct ControllerParams {
     pub cmu_max: f32,
     /// Bisection iterations of the per-step plant inversion.
     pub inversion_iterations: u8,
+}
+
+/// Response of one jet's momentum coefficient to the controller's Cmu demand: a dead time, then
+/// a first-order lag with a gain (the valve and plenum; a first-order-plus-dead-time model, the
+/// usual form of a valve's flow response, Seborg, Edgar & Mellichamp, Process Dynamics and
+/// Control, 2nd ed., chapter 6; the `actuator_delay` and `actuator_lag` of the diagnosis
+/// vocabulary, README):
+/// `Cmu[k] = pole Cmu[k-1] + (1 - pole) gain demand[k - 1 - delay_steps]`,
+/// where `demand[j]` is the demand noted after step `j` ([`crate::Estimator::note_demand`]).
+///
+/// Fitted on the host from the dataset's commanded Cmu against the measured one
+/// (`host-tools fit`); without command columns it is the identity (`delay_steps = 0`,
+/// `pole = 0`, `gain = 1`: the measured Cmu is the last demand).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ActuatorResponse {
+    /// Dead time, steps (below [`DEMAND_SLOTS`]).
+    pub delay_steps: u8,
+    /// Pole of the lag, `exp(-dt / T_valve)`, in `[0, 1)`.
+    pub pole: f32,
+    /// Steady-state Cmu per unit demand, in `(0, 10]`.
+    pub gain: f32,
+}
+
+/// The range of roll moments measured by the balance in the fit data (the training part of every
+/// run), which the estimator keeps its estimates within, with [`ENVELOPE_MARGIN`] on each side:
+/// far outside the fitted inputs (garbage held or clamped at the input limits) the models would
+/// otherwise extrapolate to moments the wing cannot make.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Envelope {
+    /// `[lowest, highest]` disturbance moment: the balance's `C_l` in the roll runs (no blowing);
+    /// bounds `C_l,roll`.
+    pub cl_roll: [f32; 2],
+    /// `[lowest, highest]` total moment: the balance's `C_l` in every run; bounds `C_l,linear`
+    /// and `C_l`.
+    pub cl: [f32; 2],
+}
+
+impl ActuatorResponse {
+    /// The identity: the jet's Cmu is the last demand.
+    pub const IDENTITY: Self = Self { delay_steps: 0, pole: 0.0, gain: 1.0 };
+}
+
+impl Envelope {
+    /// `range` widened by [`ENVELOPE_MARGIN`] times its span on each side.
+    #[must_use]
+    pub const fn with_margin(range: [f32; 2]) -> [f32; 2] {
+        let margin = ENVELOPE_MARGIN * (range[1] - range[0]);
+        [range[0] - margin, range[1] + margin]
+    }
 }

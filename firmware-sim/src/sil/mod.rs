@@ -5,7 +5,8 @@
 //! Per sample `k`: the tunnel's measured channels (encoder, measured Cmu, 12 Cp, balance) go to
 //! [`Estimator::step`]; the controller ([`Controller::step`]) gets the disturbance estimate to
 //! cancel and the balance's moment for the feedback; its Cmu demand is held by the valves over
-//! the next sample ([`TunnelSim::advance`], the valve dead time applies). The disturbance is the
+//! the next sample ([`TunnelSim::advance`], the valve dead time applies) and noted by the
+//! estimator ([`Estimator::note_demand`]), which predicts a missing Cmu from it. The disturbance is the
 //! roll motion: the roll command is the campaign's random sequence with holds.
 //!
 //! Scenarios ([`Mode`]): no control, feedback only, feedforward only, feedforward + feedback
@@ -267,6 +268,8 @@ pub fn run_closed_loop(
                 (demand.cmu.map(f64::from), health.has(Health::CMU_SATURATED))
             }
         };
+        // The demand goes to the valves: the estimator predicts a missing Cmu from it.
+        estimator.note_demand(cmu_cmd.map(|cmd| cmd as f32));
         acc.cmd_range(cmu_cmd);
         if k >= warmup {
             acc.add(&sample, cmu_cmd, saturated, cmu_max, f64::from(output.cl_roll));

@@ -144,6 +144,8 @@ pub fn model_card(set: &CoefficientSet, report: &FitReport, dataset: &str) -> St
         "Indicator thresholds: `[cmu]` = |Cmu| > {:.3e}, `[phi]` = |phi| > {:.3e} rad.\n",
         report.coupling_gates[0], report.coupling_gates[1]
     );
+    actuator_section(&mut md, report);
+    envelope_section(&mut md, report);
     heldout_section(&mut md, report);
     for note in &report.notes {
         let _ = writeln!(md, "- Note: {note}");
@@ -151,6 +153,56 @@ pub fn model_card(set: &CoefficientSet, report: &FitReport, dataset: &str) -> St
     let timing: Vec<String> = report.timing_s.iter().map(|(stage, s)| format!("{stage} {s:.2} s")).collect();
     let _ = writeln!(md, "\nTime: {}.", timing.join(", "));
     md
+}
+
+/// The jets' actuator responses (issue 16 item 5): what the plant runs on while the blowing
+/// measurement is missing.
+fn actuator_section(md: &mut String, report: &FitReport) {
+    let _ = writeln!(
+        md,
+        "## Actuator response (demand to Cmu)\n\nWhile a jet's measured Cmu is missing, the core predicts it from the controller's demands: `Cmu[k] = p Cmu[k-1] + (1 - p) g cmd[k - 1 - d]`. Dead time by one-step least squares over 0 to {} steps, pole and gain for the free run; on the training part of the runs that command the jet.\n\n| jet | source | dead time d (steps) | pole p | time constant (s) | gain g | samples | RMS Cmu | RMS one-step | RMS free run | RMS free run, identity |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+        estimator_core::coeffs::DEMAND_SLOTS - 1
+    );
+    let figure = |value: Option<f64>| value.map_or_else(|| "-".to_owned(), |value| format!("{value:.3e}"));
+    for (fit, name) in report.actuator.iter().zip(["port", "starboard"]) {
+        let tau_s = if fit.pole > 0.0 { format!("{:.4}", -report.dt_s / fit.pole.ln()) } else { "0".to_owned() };
+        let source = match fit.source {
+            super::actuator::ResponseSource::Fitted => "fitted",
+            super::actuator::ResponseSource::Mirrored => "the other jet's",
+            super::actuator::ResponseSource::Identity => "identity (no command columns)",
+        };
+        let _ = writeln!(
+            md,
+            "| {name} | {source} | {} | {:.6} | {tau_s} | {:.4} | {} | {:.3e} | {} | {} | {} |",
+            fit.delay_steps,
+            fit.pole,
+            fit.gain,
+            fit.n_samples,
+            fit.rms_cmu,
+            figure(fit.rms_one_step),
+            figure(fit.rms_free_run),
+            figure(fit.rms_identity)
+        );
+    }
+    md.push('\n');
+}
+
+/// The estimate envelope (issue 16 item 6).
+fn envelope_section(md: &mut String, report: &FitReport) {
+    let envelope = &report.envelope;
+    let _ = writeln!(
+        md,
+        "## Estimate envelope\n\nThe balance's range over the training part; the core keeps its estimates within it widened by {} of its span on each side (`estimator_core::coeffs::ENVELOPE_MARGIN`), and flags every step it limits.\n\n| estimate | measured range | bounds applied |\n| --- | --- | --- |\n| `C_l,roll` (roll runs) | [{:.4e}, {:.4e}] | [{:.4e}, {:.4e}] |\n| `C_l,linear`, `C_l` (every run) | [{:.4e}, {:.4e}] | [{:.4e}, {:.4e}] |\n",
+        envelope.margin,
+        envelope.cl_roll[0],
+        envelope.cl_roll[1],
+        envelope.cl_roll_bounds[0],
+        envelope.cl_roll_bounds[1],
+        envelope.cl[0],
+        envelope.cl[1],
+        envelope.cl_bounds[0],
+        envelope.cl_bounds[1]
+    );
 }
 
 fn egk_section(md: &mut String, report: &FitReport) {

@@ -1,9 +1,11 @@
 //! Fitting every block of the estimator on a dataset's training part.
 
+pub mod actuator;
 pub mod card;
 pub mod coupling;
 pub mod dare;
 pub mod egk;
+pub mod envelope;
 mod error;
 pub mod fusion;
 pub mod heldout;

@@ -14,8 +14,10 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::FitError;
+use super::actuator::{ActuatorFit, fit_actuators};
 use super::coupling::{CouplingConfig, CouplingRun, coupling_library, fit_coupling};
 use super::egk::{EgkData, EgkFit, fit_at, linear_map_rms, simulate};
+use super::envelope::{EnvelopeFit, fit_envelope};
 use super::fusion::{FusionData, FusionFit, fit_fusion};
 use super::heldout::{HeldoutReport, evaluate_heldout};
 use super::plant::{PlantConfig, PlantRun, fit_plant, mirrored};
@@ -73,6 +75,10 @@ pub struct FitReport {
     pub coupling: Option<SparseFit>,
     /// Indicator thresholds of the coupling operator (Cmu, roll angle in rad).
     pub coupling_gates: [f64; 2],
+    /// The jets' actuator responses (demand to Cmu).
+    pub actuator: [ActuatorFit; 2],
+    /// The estimate envelope.
+    pub envelope: EnvelopeFit,
     /// Held-out errors of the fitted core, per block and angle of attack.
     pub heldout: HeldoutReport,
     /// Notes (blocks left at their prior, mirrored jets).
@@ -142,6 +148,14 @@ pub fn fit_dataset(dataset: &Dataset, config: &FitConfig, progress: Progress<'_>
     let rate_filter = choose_rate_filter(dataset, &roll, &config.split, dt_s);
     let mut set = CoefficientSet { dt_s: dt_s as f32, rate_filter, ..PRIOR };
     timing.push(("rate filter".to_owned(), clock.elapsed().as_secs_f64()));
+
+    let clock = Instant::now();
+    progress("actuator response and envelope");
+    let actuator = fit_actuators(dataset, &config.split, &mut notes);
+    set.actuator = [0, 1].map(|side| actuator[side].response());
+    let envelope = fit_envelope(dataset, &config.split, &PRIOR.envelope, &mut notes);
+    set.envelope = envelope.envelope();
+    timing.push(("actuator and envelope".to_owned(), clock.elapsed().as_secs_f64()));
     let signals: Vec<RunSignals> =
         dataset.runs.par_iter().map(|run| RunSignals::new(run, &set.rate_filter, dt_s)).collect();
 
@@ -186,6 +200,8 @@ pub fn fit_dataset(dataset: &Dataset, config: &FitConfig, progress: Progress<'_>
         plant,
         coupling,
         coupling_gates,
+        actuator,
+        envelope,
         heldout,
         notes,
         timing_s: timing,

@@ -4,6 +4,10 @@
 //! flags the faulty channel (goal: within 50 ms) and the held-out RMS error of the full estimate
 //! `C_l` against the balance, relative to the fault-free replay (goal: at most 1.5 times).
 //!
+//! The estimator notes the run's recorded commands as the controller's demand after every step
+//! (`crate::replay::replay_step`), as the firmware's loop notes its controller's: with the
+//! blowing measurement missing, the plant runs on the Cmu the fitted actuator response predicts.
+//!
 //! The estimator is stepped over the run's training part once, fault-free, and its state cloned
 //! at the split: every fault case continues from that state, so the cases differ only by the
 //! fault (and the study costs one held-out replay per case).
@@ -17,7 +21,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::fit::split::Split;
-use crate::replay::input_at;
+use crate::replay::replay_step;
 
 /// Goal: a faulty pressure channel is flagged within this time of its fault, ms.
 pub const DETECTION_GOAL_MS: f64 = 50.0;
@@ -195,7 +199,7 @@ fn prepare<'a>(set: &'a CoefficientSet, run: &'a Run, run_idx: usize, config: &S
     }
     let mut warm = Estimator::new(set);
     for sample_idx in 0..heldout.start {
-        let _ = warm.step(&input_at(run, sample_idx));
+        let _ = replay_step(&mut warm, run, sample_idx);
     }
     let onset_s = run.channels.t_s[heldout.start];
     Some(Prepared { run, run_idx, warm, onset_idx: heldout.start, onset_s })
@@ -207,7 +211,7 @@ fn replay_heldout(prepared: &Prepared<'_>, faulty: &Run, watched: Option<usize>)
     let mut estimator = prepared.warm.clone();
     let mut sums = Sums::default();
     for sample_idx in prepared.onset_idx..faulty.channels.len() {
-        let output = estimator.step(&input_at(faulty, sample_idx));
+        let output = replay_step(&mut estimator, faulty, sample_idx);
         if let Some(tap) = watched
             && sums.latency_samples.is_none()
             && flagged(&output, tap)

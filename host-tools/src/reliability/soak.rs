@@ -4,6 +4,16 @@
 //! same input without the faults. Every estimate must stay finite at every step, and the
 //! faulty estimator's `C_l` must stay within a bound of the reference's.
 //!
+//! The envelope (issue 16 item 6): the faulty estimator's `C_l,roll`, `C_l,linear` and `C_l`
+//! must stay within the coefficient set's envelope with its margin at every step, and every step
+//! at which they had to be limited must be flagged `ESTIMATE_LIMITED`. Which steps had to be is
+//! told by a third estimator, stepped on the same faulty input with the envelope opened to
+//! `+-ENVELOPE_LIMIT` (the envelope limits outputs only, so its state is the faulty one's): a
+//! step at which its estimate leaves the envelope is a limited step.
+//!
+//! Every estimator notes the soak's blowing level as the controller's demand after each step
+//! (`Estimator::note_demand`), so a missing Cmu is predicted from it.
+//!
 //! The input is a smooth roll (two sines of slowly drifting frequency), the angle of attack of
 //! the coefficient set's schedule, held blowing levels, and pressures around their means, all
 //! with uniform noise. Fault episodes start at random steps (on average every 2,000 steps) and
@@ -16,8 +26,9 @@
 
 use std::time::Instant;
 
-use estimator_core::coeffs::N_TAPS;
-use estimator_core::{CoefficientSet, Estimator, Health, Input};
+use estimator_core::blob::ENVELOPE_LIMIT;
+use estimator_core::coeffs::{Envelope, N_TAPS};
+use estimator_core::{CoefficientSet, Estimator, Health, Input, Output};
 use firmware_sim::campaign::mix_seed;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -61,15 +72,33 @@ pub struct SoakOutcome {
     pub fault_episodes: u64,
     /// Steps at which the faulty estimator flagged a state reset.
     pub state_resets: u64,
+    /// The bounds of `C_l` (the envelope of `C_l,linear` and `C_l` with its margin).
+    pub cl_bounds: [f64; 2],
+    /// Largest |`C_l`| of the estimator without the envelope, on the same faulty input.
+    pub worst_abs_cl_unbounded: f64,
+    /// Steps at which an estimate (`C_l,roll`, `C_l,linear` or `C_l`) had to be limited: the
+    /// estimator without the envelope left it.
+    pub limited_steps: u64,
+    /// Steps the faulty estimator flagged `ESTIMATE_LIMITED` (also for its coupling limit).
+    pub flagged_steps: u64,
+    /// Limited steps not flagged (must be 0).
+    pub unflagged_limited_steps: u64,
+    /// Steps at which an estimate of the faulty estimator was beyond the envelope with its
+    /// margin (must be 0).
+    pub beyond_envelope_steps: u64,
     /// Wall time, s.
     pub elapsed_s: f64,
 }
 
 impl SoakOutcome {
-    /// True when every estimate stayed finite and the error within [`ERROR_BOUND`].
+    /// True when every estimate stayed finite, the error within [`ERROR_BOUND`], every estimate
+    /// within the envelope and every limited step flagged.
     #[must_use]
     pub fn passed(&self) -> bool {
-        self.non_finite_steps == 0 && self.worst_error <= ERROR_BOUND
+        self.non_finite_steps == 0
+            && self.worst_error <= ERROR_BOUND
+            && self.beyond_envelope_steps == 0
+            && self.unflagged_limited_steps == 0
     }
 }
 
@@ -85,10 +114,7 @@ pub fn soak(set: &CoefficientSet, config: &SoakConfig) -> SoakOutcome {
             soak_stream(set, steps, mix_seed(config.seed, stream))
         })
         .collect();
-    let mut total = SoakOutcome { steps: 0, streams, seed: config.seed, ..partials[0] };
-    total.non_finite_steps = 0;
-    total.fault_episodes = 0;
-    total.state_resets = 0;
+    let mut total = SoakOutcome { streams, seed: config.seed, ..SoakOutcome::empty(set) };
     for partial in &partials {
         total.steps += partial.steps;
         total.non_finite_steps += partial.non_finite_steps;
@@ -96,6 +122,11 @@ pub fn soak(set: &CoefficientSet, config: &SoakConfig) -> SoakOutcome {
         total.worst_abs_cl = total.worst_abs_cl.max(partial.worst_abs_cl);
         total.fault_episodes += partial.fault_episodes;
         total.state_resets += partial.state_resets;
+        total.worst_abs_cl_unbounded = total.worst_abs_cl_unbounded.max(partial.worst_abs_cl_unbounded);
+        total.limited_steps += partial.limited_steps;
+        total.flagged_steps += partial.flagged_steps;
+        total.unflagged_limited_steps += partial.unflagged_limited_steps;
+        total.beyond_envelope_steps += partial.beyond_envelope_steps;
     }
     total.elapsed_s = started.elapsed().as_secs_f64();
     total
@@ -143,24 +174,61 @@ struct Episode {
 /// Special values a broken sensor delivers.
 const SPECIAL: [f32; 8] = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, f32::MAX, f32::MIN, 1e30, -1e30, 1e-40];
 
+impl SoakOutcome {
+    /// No step yet, with the bounds of `set`.
+    fn empty(set: &CoefficientSet) -> Self {
+        Self {
+            steps: 0,
+            streams: 1,
+            seed: 0,
+            non_finite_steps: 0,
+            worst_error: 0.0,
+            worst_abs_cl: 0.0,
+            fault_episodes: 0,
+            state_resets: 0,
+            cl_bounds: Envelope::with_margin(set.envelope.cl).map(f64::from),
+            worst_abs_cl_unbounded: 0.0,
+            limited_steps: 0,
+            flagged_steps: 0,
+            unflagged_limited_steps: 0,
+            beyond_envelope_steps: 0,
+            elapsed_s: 0.0,
+        }
+    }
+
+    /// Counts the envelope's checks of one step: `bounded` from the faulty estimator, `free` from
+    /// the one without the envelope.
+    fn count_envelope(&mut self, bounds: &[[f32; 2]; 2], bounded: &Output, free: &Output) {
+        let [roll, total] = *bounds;
+        let inside = |value: f32, [low, high]: [f32; 2]| value >= low && value <= high;
+        let pairs = [(bounded.cl_roll, free.cl_roll, roll), (bounded.cl_linear, free.cl_linear, total)];
+        let pairs = pairs.into_iter().chain([(bounded.cl, free.cl, total)]);
+        let (mut limited, mut beyond) = (false, false);
+        for (value, unbounded, range) in pairs {
+            limited |= !inside(unbounded, range);
+            beyond |= !inside(value, range);
+        }
+        let flagged = bounded.health.has(Health::ESTIMATE_LIMITED);
+        self.limited_steps += u64::from(limited);
+        self.flagged_steps += u64::from(flagged);
+        self.unflagged_limited_steps += u64::from(limited && !flagged);
+        self.beyond_envelope_steps += u64::from(beyond);
+        self.worst_abs_cl_unbounded = self.worst_abs_cl_unbounded.max(f64::from(free.cl).abs());
+    }
+}
+
 fn soak_stream(set: &CoefficientSet, steps: u64, seed: u64) -> SoakOutcome {
     let mut rng = Xorshift(seed | 1);
+    let opened = Envelope { cl_roll: [-ENVELOPE_LIMIT, ENVELOPE_LIMIT], cl: [-ENVELOPE_LIMIT, ENVELOPE_LIMIT] };
+    let unbounded_set = CoefficientSet { envelope: opened, ..*set };
     let (mut faulty, mut reference) = (Estimator::new(set), Estimator::new(set));
+    let mut unbounded = Estimator::new(&unbounded_set);
+    let bounds = [Envelope::with_margin(set.envelope.cl_roll), Envelope::with_margin(set.envelope.cl)];
     let n_alpha = usize::from(set.n_alpha).clamp(1, set.alpha_schedule_deg.len());
     let mut alpha_deg = set.alpha_schedule_deg[0];
     let mut cmu = [0.0f32; 2];
     let mut episodes: Vec<Episode> = Vec::new();
-    let mut outcome = SoakOutcome {
-        steps,
-        streams: 1,
-        seed,
-        non_finite_steps: 0,
-        worst_error: 0.0,
-        worst_abs_cl: 0.0,
-        fault_episodes: 0,
-        state_resets: 0,
-        elapsed_s: 0.0,
-    };
+    let mut outcome = SoakOutcome { steps, seed, ..SoakOutcome::empty(set) };
     for step in 0..steps {
         // Slow changes of the operating point: a new alpha every 20 s, new blowing every 0.5 s.
         if step % 20_000 == 0 {
@@ -180,10 +248,14 @@ fn soak_stream(set: &CoefficientSet, steps: u64, seed: u64) -> SoakOutcome {
             episode.remaining -= 1;
         }
         episodes.retain(|episode| episode.remaining > 0);
-        let (out, out_ref) = (faulty.step(&input), reference.step(&clean));
+        let (out, out_ref, out_free) = (faulty.step(&input), reference.step(&clean), unbounded.step(&input));
+        for estimator in [&mut faulty, &mut reference, &mut unbounded] {
+            estimator.note_demand(cmu);
+        }
         if !out.estimates().iter().chain(out_ref.estimates().iter()).all(|value| value.is_finite()) {
             outcome.non_finite_steps += 1;
         }
+        outcome.count_envelope(&bounds, &out, &out_free);
         outcome.state_resets += u64::from(out.health.has(Health::STATE_RESET));
         let error = (f64::from(out.cl) - f64::from(out_ref.cl)).abs();
         // `max` ignores NaN; a non-finite estimate is counted above.
@@ -265,5 +337,21 @@ mod tests {
         assert!(outcome.fault_episodes > 20, "{outcome:?}");
         assert!(outcome.passed(), "{outcome:?}");
         assert!(outcome.worst_error > 0.0, "faults must move the estimate: {outcome:?}");
+    }
+
+    /// Issue 16, item 6 (<https://github.com/issues/16>): the soak's garbage drives the
+    /// estimate beyond the envelope (0.39 before it), every such step is limited and flagged,
+    /// and no estimate leaves the envelope with its margin.
+    #[test]
+    fn issue_16_the_soak_limits_and_flags_every_step_beyond_the_envelope() {
+        let set = estimator_core::coeffs::DEFAULT;
+        let outcome = soak(&set, &SoakConfig { steps: 200_000, seed: 3, streams: 2 });
+        let [low, high] = outcome.cl_bounds;
+        assert!(outcome.limited_steps > 0, "the garbage must reach beyond the envelope: {outcome:?}");
+        assert!(outcome.worst_abs_cl_unbounded > high.max(-low), "{outcome:?}");
+        assert!(outcome.worst_abs_cl <= high.max(-low), "{outcome:?}");
+        assert_eq!((outcome.unflagged_limited_steps, outcome.beyond_envelope_steps), (0, 0), "{outcome:?}");
+        assert!(outcome.flagged_steps >= outcome.limited_steps, "{outcome:?}");
+        assert!(outcome.passed());
     }
 }
