@@ -70,6 +70,34 @@ fn short(kinds: &[RunKind]) -> firmware_sim::dataset::Dataset {
     record(12.0, &[10.0], kinds, BlowingSides::Port)
 }
 
+/// Issue 16, item 5 (<https://github.com/issues/16>): the actuator response is fitted on the
+/// recording's commanded Cmu (the tunnel's valve: 5 ms dead time, 3 ms lag, unit gain); a
+/// recording without command columns gets the identity, and the model card says so.
+#[test]
+fn issue_16_the_actuator_response_is_fitted_on_the_commands_or_is_the_identity() {
+    use estimator_core::coeffs::ActuatorResponse;
+    use host_tools::fit::actuator::ResponseSource;
+    let dataset = short(&[RunKind::Roll, RunKind::Actuation]);
+    let outcome = fit_dataset(&dataset, &FitConfig::default(), &|_| {}).expect("fits");
+    let port = &outcome.report.actuator[0];
+    println!("{port:?}");
+    assert_eq!(port.source, ResponseSource::Fitted);
+    // One step of the response's own delay (`cmd[k - 1 - d]`) plus d: 4 to 6 ms.
+    assert!((3..=5).contains(&port.delay_steps), "{port:?}");
+    assert!((port.gain - 1.0).abs() < 0.02, "{port:?}");
+    assert!(port.rms_free_run.unwrap() < 0.25 * port.rms_identity.unwrap(), "{port:?}");
+    assert_eq!(outcome.report.actuator[1].source, ResponseSource::Mirrored);
+
+    let mut without = dataset.clone();
+    for run in &mut without.runs {
+        (run.channels.cmu_port_cmd, run.channels.cmu_stbd_cmd) = (None, None);
+    }
+    let outcome = fit_dataset(&without, &FitConfig::default(), &|_| {}).expect("fits");
+    assert_eq!(outcome.set.actuator, [ActuatorResponse::IDENTITY; 2]);
+    let card = host_tools::fit::card::model_card(&outcome.set, &outcome.report, "test");
+    assert!(card.contains("the actuator response is the identity"), "{card}");
+}
+
 #[test]
 fn missing_runs_are_named() {
     let roll_only = short(&[RunKind::Roll]);
