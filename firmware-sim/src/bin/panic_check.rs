@@ -1,10 +1,14 @@
-//! Link-time proof that `Estimator::step` has no panic path on the Cortex-M4F.
+//! Link-time proof that the firmware's step has no panic path on the Cortex-M4F.
 //!
-//! The binary calls nothing but the estimator's step, on inputs read with `read_volatile` from a
-//! `static` (so the optimiser cannot const-fold them and drop a branch), and its panic handler
-//! calls `estimator_step_has_a_panic_path`, a symbol that no object defines. With fat LTO (the
-//! `firmware` profile) every panic the optimiser can prove unreachable is removed; if any path to
-//! `core::panicking` survives, the handler is referenced and the link fails with
+//! The binary runs the firmware's fixed-rate loop (`firmware_sim::io::FixedRateLoop`: the
+//! estimator, `note_demand` and the controller) twice: over the built-in tables with their
+//! generated code, and over a coefficient set the optimiser cannot know: decoded at run time from
+//! a blob read with `read_volatile` (the blob decoder's checks are part of the proof), or, when
+//! that fails, a whole `CoefficientSet` read with `read_volatile` (any bit pattern: the step must
+//! stay panic-free with any tables). The inputs are read with `read_volatile` each step too. Its
+//! panic handler calls `estimator_step_has_a_panic_path`, a symbol that no object defines. With
+//! fat LTO (the `firmware` profile) every panic the optimiser can prove unreachable is removed;
+//! if any path to `core::panicking` survives, the handler is referenced and the link fails with
 //! `undefined symbol: estimator_step_has_a_panic_path`. CI builds it in the `nostd` job:
 //!
 //! ```sh
@@ -32,35 +36,98 @@ fn main() {
 #[cfg(target_os = "none")]
 mod board {
     use cortex_m_rt::entry;
+    use estimator_core::CoefficientSet;
+    use estimator_core::blob::MAX_BLOB_LEN;
     use estimator_core::coeffs::N_TAPS;
-    use estimator_core::{CoefficientSet, Estimator, Input};
+    use firmware_sim::io::{
+        AlphaSource, BlowingMeasurement, BlowingOutput, FixedRateLoop, PressureFrontEnd, RollEncoder, TickCounter,
+    };
+    use firmware_sim::link::FIRMWARE_BLOCKS;
     // The device crate's interrupt vectors, which cortex-m-rt's `device` feature links against.
     use stm32f4 as _;
 
-    /// The compiled-in coefficient tables, as the firmware flies them.
-    static SET: CoefficientSet = estimator_core::coeffs::DEFAULT;
+    /// A coefficient set's image: read with `read_volatile`, so for the optimiser any tables.
+    static SET_IMAGE: CoefficientSet = estimator_core::coeffs::DEFAULT;
+    /// A blob's bytes, read with `read_volatile`: any bytes.
+    static BLOB: [u8; MAX_BLOB_LEN] = [0; MAX_BLOB_LEN];
 
-    /// The inputs, read with `read_volatile` each step: for the optimiser any value is possible.
-    static INPUT: Input = Input { phi_deg: 0.0, alpha_deg: 0.0, cmu_port: 0.0, cmu_stbd: 0.0, cp: [0.0; N_TAPS] };
+    /// One step's inputs, read with `read_volatile`: for the optimiser any values.
+    static INPUTS: [f32; 4 + N_TAPS] = [0.0; 4 + N_TAPS];
 
     // The one symbol that must stay unreferenced: defined nowhere, on purpose.
     unsafe extern "C" {
         fn estimator_step_has_a_panic_path() -> !;
     }
 
+    /// Sensors that may read anything, valves and a clock.
+    struct VolatileBoard {
+        inputs: [f32; 4 + N_TAPS],
+        demand: [f32; 2],
+    }
+
+    impl VolatileBoard {
+        fn sample(&mut self) {
+            // SAFETY: INPUTS is a valid, aligned, immutable static of a `Copy` type.
+            self.inputs = unsafe { core::ptr::read_volatile(&raw const INPUTS) };
+        }
+    }
+
+    impl PressureFrontEnd for VolatileBoard {
+        fn read(&mut self) -> [f32; N_TAPS] {
+            core::array::from_fn(|tap| self.inputs[4 + tap])
+        }
+    }
+    impl RollEncoder for VolatileBoard {
+        fn angle_deg(&mut self) -> f32 {
+            self.inputs[0]
+        }
+    }
+    impl AlphaSource for VolatileBoard {
+        fn alpha_deg(&mut self) -> f32 {
+            self.inputs[1]
+        }
+    }
+    impl BlowingMeasurement for VolatileBoard {
+        fn cmu(&mut self) -> [f32; 2] {
+            [self.inputs[2], self.inputs[3]]
+        }
+    }
+    impl BlowingOutput for VolatileBoard {
+        fn set_cmu(&mut self, cmu: [f32; 2]) {
+            self.demand = cmu;
+        }
+    }
+    impl TickCounter for VolatileBoard {
+        fn now(&mut self) -> u32 {
+            // SAFETY: as in `sample`.
+            let inputs = unsafe { core::ptr::read_volatile(&raw const INPUTS) };
+            inputs[0].to_bits()
+        }
+        fn elapsed(&self, start: u32, end: u32) -> u32 {
+            end.wrapping_sub(start)
+        }
+    }
+
     #[entry]
     fn main() -> ! {
-        // Both evaluations of the sparse models: from the tables (any loaded set) and the
-        // built-in set's generated code (what the firmware flies).
-        let mut estimator = Estimator::new(&SET);
-        let mut compiled = Estimator::built_in();
+        // SAFETY: BLOB and SET_IMAGE are valid, aligned, immutable statics of `Copy` types.
+        let blob = unsafe { core::ptr::read_volatile(&raw const BLOB) };
+        let set = match estimator_core::blob::decode(&blob) {
+            Ok(set) => set,
+            // SAFETY: as above.
+            Err(_) => unsafe { core::ptr::read_volatile(&raw const SET_IMAGE) },
+        };
+        let mut loaded = FixedRateLoop::new(&set, FIRMWARE_BLOCKS);
+        let mut built_in = FixedRateLoop::built_in(FIRMWARE_BLOCKS);
+        let mut board = VolatileBoard { inputs: [0.0; 4 + N_TAPS], demand: [0.0; 2] };
+        let mut clock = VolatileBoard { inputs: [0.0; 4 + N_TAPS], demand: [0.0; 2] };
         loop {
-            // SAFETY: INPUT is a valid, aligned, immutable static of a `Copy` type.
-            let input = unsafe { core::ptr::read_volatile(&raw const INPUT) };
-            let outputs = [estimator.step(&input), compiled.step(&input)];
-            // Keep the outputs observable so that the steps are not optimised away.
-            // SAFETY: `outputs` is a live local; the volatile read only prevents elision.
-            let _ = unsafe { core::ptr::read_volatile(&raw const outputs) };
+            board.sample();
+            let results = [loaded.step(&mut board, &mut clock), built_in.step(&mut board, &mut clock)];
+            // Keep the results observable so that the steps are not optimised away.
+            // SAFETY: `results` and `board` are live locals; the volatile reads only prevent elision.
+            let _ = unsafe { core::ptr::read_volatile(&raw const results) };
+            let _ = unsafe { core::ptr::read_volatile(&raw const board.demand) };
         }
     }
 
