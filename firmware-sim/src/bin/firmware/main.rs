@@ -46,6 +46,7 @@ mod board {
     use firmware_sim::io::{FixedRateLoop, TickCounter};
 
     pub use crate::tick::SysTickCounter;
+    use embedded_io::{Read, ReadReady, Write};
     use firmware_sim::link::{
         self, BlobRejection, Estimate, FrameDecoder, FromFirmware, LinkReport, MAX_FRAME_LEN, PROTOCOL_VERSION, Tables,
         ToFirmware,
@@ -55,7 +56,7 @@ mod board {
     use stm32f4::stm32f405 as pac;
 
     use crate::clocks::{self, CORE_CLOCK_HZ};
-    use crate::serial::{self, RxQueue, TxQueue};
+    use crate::serial::{self, RxQueue, SerialPort, TxQueue};
     use crate::tick::{self, Flying, PERIOD_TICKS, Pending, RATE_HZ};
 
     #[cfg(not(feature = "qemu"))]
@@ -104,7 +105,7 @@ mod board {
         }
 
         defmt::println!("loop {=u32} Hz", RATE_HZ);
-        let (rx, tx) = serial::start(device.USART1, &device.GPIOA, RX.init(Queue::new()), TX.init(Queue::new()));
+        let port = serial::start(device.USART1, &device.GPIOA, RX.init(Queue::new()), TX.init(Queue::new()));
         let (samples_in, samples_out) = SAMPLES.init(Queue::new()).split();
         let (estimates_in, estimates_out) = ESTIMATES.init(Queue::new()).split();
         let flying = FLYING.init(Flying::BuiltIn(FixedRateLoop::built_in(BLOCKS)));
@@ -117,8 +118,7 @@ mod board {
         }
         tick::start(&mut core.SYST, flying, samples_out, estimates_in);
         let mut link = Link {
-            rx,
-            tx,
+            port,
             samples: samples_in,
             estimates: estimates_out,
             decoder: FrameDecoder::new(),
@@ -135,8 +135,7 @@ mod board {
 
     /// The main loop's ends of the queues and what it keeps.
     struct Link {
-        rx: Consumer<'static, u8>,
-        tx: Producer<'static, u8>,
+        port: SerialPort,
         samples: Producer<'static, Pending>,
         estimates: Consumer<'static, Estimate>,
         decoder: FrameDecoder,
@@ -154,12 +153,16 @@ mod board {
         fn run(&mut self) -> ! {
             loop {
                 let mut busy = false;
-                while let Some(byte) = self.rx.dequeue() {
+                let mut bytes = [0u8; 64];
+                while self.port.read_ready().unwrap_or(false) {
                     busy = true;
-                    match self.decoder.push(byte) {
-                        Some(Ok(())) => self.handle_frame(),
-                        Some(Err(_)) => self.bad_frames = self.bad_frames.wrapping_add(1),
-                        None => {}
+                    let n = self.port.read(&mut bytes).unwrap_or(0);
+                    for &byte in &bytes[..n] {
+                        match self.decoder.push(byte) {
+                            Some(Ok(())) => self.handle_frame(),
+                            Some(Err(_)) => self.bad_frames = self.bad_frames.wrapping_add(1),
+                            None => {}
+                        }
                     }
                 }
                 while let Some(estimate) = self.estimates.dequeue() {
@@ -170,7 +173,7 @@ mod board {
                     // Sleep until an interrupt; checked with the interrupts masked so that one
                     // arriving between the check and the `wfi` still wakes it.
                     cortex_m::interrupt::free(|_| {
-                        if !self.rx.ready() && !self.estimates.ready() {
+                        if !self.port.read_ready().unwrap_or(true) && !self.estimates.ready() {
                             cortex_m::asm::wfi();
                         }
                     });
@@ -271,13 +274,9 @@ mod board {
         /// Queues one frame for the USART, waiting for room when the queue is full.
         fn send(&mut self, message: &FromFirmware) {
             let mut frame = [0u8; MAX_FRAME_LEN];
-            let Ok(len) = link::encode(message, &mut frame) else { return };
-            for &byte in &frame[..len] {
-                while self.tx.enqueue(byte).is_err() {
-                    serial::kick();
-                }
+            if let Ok(len) = link::encode(message, &mut frame) {
+                let _ = self.port.write_all(&frame[..len]);
             }
-            serial::kick();
         }
 
         /// The end of a run: under QEMU, exit once the last byte is out; on a board, keep
@@ -285,9 +284,7 @@ mod board {
         fn stop(&mut self) {
             #[cfg(feature = "qemu")]
             {
-                while !self.tx.is_empty() {
-                    serial::kick();
-                }
+                let _ = self.port.flush();
                 defmt::println!("stop: {=u32} bad frames", self.bad_frames);
                 cortex_m_semihosting::debug::exit(cortex_m_semihosting::debug::EXIT_SUCCESS);
             }

@@ -4,8 +4,9 @@
 //! Receive: every byte goes from the data register to the [`RxQueue`] at once (the USART holds
 //! one byte; the interrupt runs above the loop's timer so that a step never makes it lose one).
 //! Transmit: the main loop queues a frame's bytes and pends the interrupt, which sends one byte
-//! per "transmit register empty" and masks that event when the queue is empty. The link's
-//! framing ([`firmware_sim::link`]) is the main loop's.
+//! per "transmit register empty" and masks that event when the queue is empty. The main loop
+//! sees the port as `embedded-io`'s `Read`, `ReadReady` and `Write` ([`SerialPort`]); the link's
+//! framing ([`firmware_sim::link`]) is its own.
 
 use core::cell::RefCell;
 
@@ -43,14 +44,71 @@ struct Port {
 /// The interrupt's state, handed over once by [`start`].
 static PORT: Mutex<RefCell<Option<Port>>> = Mutex::new(RefCell::new(None));
 
+/// The main loop's end of the port.
+pub struct SerialPort {
+    rx: Consumer<'static, u8>,
+    tx: Producer<'static, u8>,
+}
+
+impl embedded_io::ErrorType for SerialPort {
+    type Error = core::convert::Infallible;
+}
+
+impl embedded_io::ReadReady for SerialPort {
+    fn read_ready(&mut self) -> Result<bool, Self::Error> {
+        Ok(self.rx.ready())
+    }
+}
+
+impl embedded_io::Read for SerialPort {
+    /// Waits for at least one byte (call [`embedded_io::ReadReady::read_ready`] first not to).
+    fn read(&mut self, buf: &mut [u8]) -> Result<usize, Self::Error> {
+        if buf.is_empty() {
+            return Ok(0);
+        }
+        let mut n = 0;
+        while n == 0 {
+            for slot in buf.iter_mut() {
+                let Some(byte) = self.rx.dequeue() else { break };
+                *slot = byte;
+                n += 1;
+            }
+        }
+        Ok(n)
+    }
+}
+
+impl embedded_io::Write for SerialPort {
+    /// Queues what fits (waiting for room for at least one byte) and starts sending.
+    fn write(&mut self, buf: &[u8]) -> Result<usize, Self::Error> {
+        let mut n = 0;
+        for &byte in buf {
+            if self.tx.enqueue(byte).is_err() {
+                if n > 0 {
+                    break;
+                }
+                while self.tx.enqueue(byte).is_err() {
+                    kick();
+                }
+            }
+            n += 1;
+        }
+        kick();
+        Ok(n)
+    }
+
+    /// Waits until every queued byte is in the USART.
+    fn flush(&mut self) -> Result<(), Self::Error> {
+        while !self.tx.is_empty() {
+            kick();
+        }
+        Ok(())
+    }
+}
+
 /// Configures PA9/PA10 and USART1, hands the USART and the queues' interrupt ends to the
-/// interrupt, and enables it; returns the main loop's ends.
-pub fn start(
-    usart: pac::USART1,
-    gpioa: &pac::GPIOA,
-    rx: &'static mut RxQueue,
-    tx: &'static mut TxQueue,
-) -> (Consumer<'static, u8>, Producer<'static, u8>) {
+/// interrupt, and enables it; returns the main loop's end.
+pub fn start(usart: pac::USART1, gpioa: &pac::GPIOA, rx: &'static mut RxQueue, tx: &'static mut TxQueue) -> SerialPort {
     gpioa.moder().modify(|_, w| w.moder9().alternate().moder10().alternate());
     gpioa.afrh().modify(|_, w| w.afrh9().af7().afrh10().af7());
     usart.brr().write(|w| unsafe { w.bits((APB2_HZ / BAUD) as u16) });
@@ -60,7 +118,7 @@ pub fn start(
     cortex_m::interrupt::free(|cs| {
         PORT.borrow(cs).replace(Some(Port { usart, rx: rx_producer, tx: tx_consumer, lost: 0 }));
     });
-    (rx_consumer, tx_producer)
+    SerialPort { rx: rx_consumer, tx: tx_producer }
 }
 
 /// Starts sending what the main loop queued.
