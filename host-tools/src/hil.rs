@@ -304,6 +304,7 @@ fn timing(report: &LinkReport) -> HilTiming {
 /// The host's end of the serial link.
 struct Port {
     stream: UnixStream,
+    reader: std::io::BufReader<UnixStream>,
     decoder: FrameDecoder,
     /// Frames the host could not decode.
     bad_frames: usize,
@@ -320,7 +321,7 @@ impl Port {
     fn receive(&mut self) -> anyhow::Result<FromFirmware> {
         let mut byte = [0u8; 1];
         loop {
-            match self.stream.read(&mut byte) {
+            match self.reader.read(&mut byte) {
                 Ok(0) => bail!("the firmware closed its serial link"),
                 Ok(_) => {}
                 Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {
@@ -393,7 +394,8 @@ fn boot(elf: &Path, socket_dir: &Path, work_dir: &Path, log: &Path) -> anyhow::R
         }
     };
     stream.set_read_timeout(Some(ANSWER_TIMEOUT)).context("setting the link's timeout")?;
-    Ok((emulator, Port { stream, decoder: FrameDecoder::new(), bad_frames: 0 }))
+    let reader = std::io::BufReader::new(stream.try_clone().context("cloning the link's socket")?);
+    Ok((emulator, Port { stream, reader, decoder: FrameDecoder::new(), bad_frames: 0 }))
 }
 
 fn stderr_of(emulator: &mut Emulator) -> String {
