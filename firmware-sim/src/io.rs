@@ -55,6 +55,54 @@ pub trait Board: PressureFrontEnd + RollEncoder + AlphaSource + BlowingMeasureme
 
 impl<T: PressureFrontEnd + RollEncoder + AlphaSource + BlowingMeasurement + BlowingOutput> Board for T {}
 
+/// A board whose sensors read one recorded or received sample ([`Input`]) and whose valves keep
+/// the last demand: the serial link's rig, a file replay, the host's reference of the loop.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct InputBoard {
+    /// The sample the sensors read.
+    pub input: Input,
+    /// The last `[port, starboard]` Cmu demand written.
+    pub demand: [f32; 2],
+}
+
+impl InputBoard {
+    /// Reading `input`, no demand yet (NaN).
+    #[must_use]
+    pub const fn new(input: Input) -> Self {
+        Self { input, demand: [f32::NAN; 2] }
+    }
+}
+
+impl PressureFrontEnd for InputBoard {
+    fn read(&mut self) -> [f32; N_TAPS] {
+        self.input.cp
+    }
+}
+
+impl RollEncoder for InputBoard {
+    fn angle_deg(&mut self) -> f32 {
+        self.input.phi_deg
+    }
+}
+
+impl AlphaSource for InputBoard {
+    fn alpha_deg(&mut self) -> f32 {
+        self.input.alpha_deg
+    }
+}
+
+impl BlowingMeasurement for InputBoard {
+    fn cmu(&mut self) -> [f32; 2] {
+        [self.input.cmu_port, self.input.cmu_stbd]
+    }
+}
+
+impl BlowingOutput for InputBoard {
+    fn set_cmu(&mut self, cmu: [f32; 2]) {
+        self.demand = cmu;
+    }
+}
+
 /// What one loop step produced.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StepResult {

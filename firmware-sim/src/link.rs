@@ -241,6 +241,25 @@ pub struct Estimate {
     pub latency_ticks: u32,
 }
 
+impl Estimate {
+    /// The estimate of sample `seq` from its step's result, with its latency in core-clock ticks.
+    #[must_use]
+    pub const fn from_step(seq: u32, result: &crate::io::StepResult, latency_ticks: u32) -> Self {
+        let health = result.output.health;
+        Self {
+            seq,
+            estimates: result.output.estimates(),
+            health: [health.flags, health.cp_missing, health.cp_rejected, health.cp_isolated],
+            demand_cmu: result.demand.cmu,
+            demand_moment: result.demand.moment,
+            controller_flags: result.controller_health.flags,
+            ticks_estimator: result.ticks_estimator,
+            ticks_total: result.ticks_total,
+            latency_ticks,
+        }
+    }
+}
+
 /// The loop's health over the run so far: what a rig must watch.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub struct LinkReport {

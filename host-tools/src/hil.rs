@@ -17,16 +17,13 @@
 use std::io::{Read as _, Write as _};
 use std::os::unix::net::UnixStream;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::Child;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
 use estimator_core::CoefficientSet;
-use estimator_core::coeffs::N_TAPS;
 use firmware_sim::dataset::Run;
-use firmware_sim::io::{
-    AlphaSource, BlowingMeasurement, BlowingOutput, FixedRateLoop, PressureFrontEnd, RollEncoder, TickCounter,
-};
+use firmware_sim::io::{FixedRateLoop, InputBoard, TickCounter};
 use firmware_sim::link::{
     self, BLOB_CHUNK_LEN, BlobRejection, Estimate, FIRMWARE_BLOCKS, FrameDecoder, FromFirmware, LinkReport,
     MAX_FRAME_LEN, SampleInput, Tables, ToFirmware,
@@ -40,26 +37,29 @@ const ANSWER_TIMEOUT: Duration = Duration::from_secs(20);
 
 /// Names of the compared outputs, in the order of [`HilComparison::max_abs`]: the estimator's
 /// estimates, its four health words, the demand and the controller's flags.
-pub const COMPARED_FIELDS: [&str; 18] = [
-    "cl_egk",
-    "cl_pressure",
-    "cl_roll",
-    "cl_afc_port",
-    "cl_afc_stbd",
-    "cl_afc",
-    "cl_linear",
-    "coupling",
-    "cl",
-    "phi_dot_rad_s",
-    "health_flags",
-    "cp_missing",
-    "cp_rejected",
-    "cp_isolated",
-    "demand_cmu_port",
-    "demand_cmu_stbd",
-    "demand_moment",
-    "controller_flags",
-];
+pub const COMPARED_FIELDS: [&str; 18] = {
+    let mut names = [""; 18];
+    let mut i = 0;
+    while i < 10 {
+        names[i] = estimator_core::Output::ESTIMATE_NAMES[i];
+        i += 1;
+    }
+    let rest = [
+        "health_flags",
+        "cp_missing",
+        "cp_rejected",
+        "cp_isolated",
+        "demand_cmu_port",
+        "demand_cmu_stbd",
+        "demand_moment",
+        "controller_flags",
+    ];
+    while i < 18 {
+        names[i] = rest[i - 10];
+        i += 1;
+    }
+    names
+};
 
 /// One step as compared: every field as an f32 bit pattern (integers widened exactly).
 fn fields(estimate: &Estimate) -> [f32; 18] {
@@ -112,38 +112,6 @@ pub fn compare(host: &[Estimate], firmware: &[Estimate]) -> HilComparison {
     HilComparison { steps: host.len().min(firmware.len()), max_abs, steps_not_identical }
 }
 
-/// A rig with the run's samples: the host side of the reference loop.
-struct SampleBoard {
-    input: estimator_core::Input,
-    demand: [f32; 2],
-}
-
-impl PressureFrontEnd for SampleBoard {
-    fn read(&mut self) -> [f32; N_TAPS] {
-        self.input.cp
-    }
-}
-impl RollEncoder for SampleBoard {
-    fn angle_deg(&mut self) -> f32 {
-        self.input.phi_deg
-    }
-}
-impl AlphaSource for SampleBoard {
-    fn alpha_deg(&mut self) -> f32 {
-        self.input.alpha_deg
-    }
-}
-impl BlowingMeasurement for SampleBoard {
-    fn cmu(&mut self) -> [f32; 2] {
-        [self.input.cmu_port, self.input.cmu_stbd]
-    }
-}
-impl BlowingOutput for SampleBoard {
-    fn set_cmu(&mut self, cmu: [f32; 2]) {
-        self.demand = cmu;
-    }
-}
-
 /// No clock on the host: every step takes 0 ticks.
 struct NoTicks;
 
@@ -172,23 +140,12 @@ pub fn host_loop(samples: &[SampleInput], set: Option<&CoefficientSet>) -> Vec<E
         .iter()
         .enumerate()
         .map(|(seq, sample)| {
-            let mut board = SampleBoard { input: estimator_core::Input::from(sample), demand: [f32::NAN; 2] };
+            let mut board = InputBoard::new(estimator_core::Input::from(sample));
             let result = match &mut reference {
                 Reference::BuiltIn(fixed_rate) => fixed_rate.step(&mut board, &mut NoTicks),
                 Reference::Loaded(fixed_rate) => fixed_rate.step(&mut board, &mut NoTicks),
             };
-            let health = result.output.health;
-            Estimate {
-                seq: seq as u32,
-                estimates: result.output.estimates(),
-                health: [health.flags, health.cp_missing, health.cp_rejected, health.cp_isolated],
-                demand_cmu: board.demand,
-                demand_moment: result.demand.moment,
-                controller_flags: result.controller_health.flags,
-                ticks_estimator: 0,
-                ticks_total: 0,
-                latency_ticks: 0,
-            }
+            Estimate::from_step(seq as u32, &result, 0)
         })
         .collect()
 }
@@ -223,6 +180,8 @@ pub struct HilTiming {
     pub latency_mean_us: f64,
     /// Largest such latency, us.
     pub latency_max_us: f64,
+    /// Shortest and longest time between two ticks of the loop, us.
+    pub period_us: [f64; 2],
 }
 
 /// Everything a hardware-in-the-loop run measured.
@@ -238,51 +197,12 @@ pub struct HilRun {
     pub blob: Option<BlobOutcome>,
     /// Against the host's loop.
     pub comparison: HilComparison,
-    /// The firmware's own counters.
-    pub report: ReportJson,
+    /// The firmware's own counters (ticks of the core clock).
+    pub report: LinkReport,
     /// Step instructions and latency.
     pub timing: HilTiming,
     /// Wall-clock time of the QEMU run, s.
     pub wall_s: f64,
-}
-
-/// [`LinkReport`] as it goes to `hil.json`.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct ReportJson {
-    /// Timer ticks.
-    pub ticks: u32,
-    /// Steps run.
-    pub steps: u32,
-    /// Ticks without a sample waiting.
-    pub idle_ticks: u32,
-    /// Ticks that came while a step still ran.
-    pub overruns: u32,
-    /// Frames dropped as bad.
-    pub bad_frames: u32,
-    /// Samples dropped (queue full or bytes lost).
-    pub dropped_samples: u32,
-    /// Estimates dropped (queue full).
-    pub dropped_estimates: u32,
-    /// Stack bytes used and available.
-    pub stack: [u32; 2],
-    /// Shortest and longest time between two ticks, us.
-    pub period_us: [f64; 2],
-}
-
-impl From<&LinkReport> for ReportJson {
-    fn from(r: &LinkReport) -> Self {
-        Self {
-            ticks: r.ticks,
-            steps: r.steps,
-            idle_ticks: r.idle_ticks,
-            overruns: r.overruns,
-            bad_frames: r.bad_frames,
-            dropped_samples: r.dropped_samples,
-            dropped_estimates: r.dropped_estimates,
-            stack: r.stack,
-            period_us: r.period_ticks.map(|ticks| f64::from(ticks) / f64::from(r.core_clock_hz.max(1)) * 1e6),
-        }
-    }
 }
 
 fn timing(report: &LinkReport) -> HilTiming {
@@ -298,6 +218,7 @@ fn timing(report: &LinkReport) -> HilTiming {
         total_max: instructions(f64::from(report.total_ticks_max)),
         latency_mean_us: us(report.latency_ticks_sum as f64 / f64::from(report.steps.max(1))),
         latency_max_us: us(f64::from(report.latency_ticks_max)),
+        period_us: report.period_ticks.map(|ticks| us(f64::from(ticks))),
     }
 }
 
@@ -359,24 +280,9 @@ impl Drop for Emulator {
 /// output in `log`, and connects to the socket.
 fn boot(elf: &Path, socket_dir: &Path, work_dir: &Path, log: &Path) -> anyhow::Result<(Emulator, Port)> {
     let socket = socket_dir.join("link.sock");
-    let log = std::fs::File::create(log).with_context(|| format!("creating {}", log.display()))?;
-    let child = Command::new(QEMU)
-        .current_dir(work_dir)
-        .args(["-machine", "netduinoplus2", "-display", "none", "-monitor", "none"])
-        .args(["-semihosting-config", "enable=on,target=native", "-icount", "shift=0,sleep=off"])
-        .arg("-chardev")
-        .arg(format!("socket,id=link,path={},server=on,wait=on", socket.display()))
-        .args(["-serial", "chardev:link", "-kernel"])
-        .arg(elf)
-        .stdin(Stdio::null())
-        .stdout(log)
-        .stderr(Stdio::piped())
-        .spawn()
-        .map_err(|error| {
-            anyhow::anyhow!(
-                "cannot start {QEMU} ({error}): install it (`apt-get install qemu-system-arm`, or `./ci.sh setup`)"
-            )
-        })?;
+    let chardev = format!("socket,id=link,path={},server=on,wait=on", socket.display());
+    let args = ["-display", "none", "-monitor", "none", "-icount", "shift=0,sleep=off", "-chardev", &chardev];
+    let child = qemu::spawn(elf, work_dir, log, &[&args[..], &["-serial", "chardev:link"]].concat())?;
     let mut emulator = Emulator { child };
     let started = Instant::now();
     let stream = loop {
@@ -492,7 +398,7 @@ pub fn hil(
     }
     let wall_s = started.elapsed().as_secs_f64();
     let host = host_loop(samples, loaded.as_ref());
-    let mut report_json = ReportJson::from(&report);
+    let mut report_json = report;
     report_json.bad_frames += port.bad_frames as u32;
     Ok(HilRun {
         run: run_file.to_path_buf(),
@@ -555,7 +461,7 @@ pub fn summary(run: &HilRun) -> String {
     let _ = writeln!(
         text,
         "tick period {:.1} to {:.1} us; stack {} of {} bytes",
-        r.period_us[0], r.period_us[1], r.stack[0], r.stack[1]
+        t.period_us[0], t.period_us[1], r.stack[0], r.stack[1]
     );
     text
 }

@@ -111,15 +111,15 @@ pub struct FirmwareRun {
     pub wall_s: f64,
 }
 
-/// Runs `elf` in QEMU in `dir` (which holds [`INPUT_FILE`]); fails on a non-zero exit, on
-/// `timeout`, or when `qemu-system-arm` is not installed.
-pub fn run_firmware(elf: &Path, dir: &Path, timeout: Duration) -> anyhow::Result<FirmwareRun> {
-    let log = std::fs::File::create(dir.join(LOG_FILE)).context("creating the log file")?;
-    let started = Instant::now();
-    let mut child = Command::new(QEMU)
+/// Starts `elf` in QEMU's STM32F405 board (`netduinoplus2`) with semihosting, working in `dir`,
+/// its semihosting output in `log`, with the further QEMU arguments `args`.
+pub fn spawn(elf: &Path, dir: &Path, log: &Path, args: &[&str]) -> anyhow::Result<std::process::Child> {
+    let log = std::fs::File::create(log).with_context(|| format!("creating {}", log.display()))?;
+    Command::new(QEMU)
         .current_dir(dir)
-        .args(["-machine", "netduinoplus2", "-nographic", "-semihosting-config", "enable=on,target=native"])
-        .args(["-icount", "shift=0", "-kernel"])
+        .args(["-machine", "netduinoplus2", "-semihosting-config", "enable=on,target=native"])
+        .args(args)
+        .arg("-kernel")
         .arg(elf)
         .stdin(Stdio::null())
         .stdout(log)
@@ -129,7 +129,14 @@ pub fn run_firmware(elf: &Path, dir: &Path, timeout: Duration) -> anyhow::Result
             anyhow::anyhow!(
                 "cannot start {QEMU} ({error}): install it (`apt-get install qemu-system-arm`, or `./ci.sh setup`)"
             )
-        })?;
+        })
+}
+
+/// Runs `elf` in QEMU in `dir` (which holds [`INPUT_FILE`]); fails on a non-zero exit, on
+/// `timeout`, or when `qemu-system-arm` is not installed.
+pub fn run_firmware(elf: &Path, dir: &Path, timeout: Duration) -> anyhow::Result<FirmwareRun> {
+    let started = Instant::now();
+    let mut child = spawn(elf, dir, &dir.join(LOG_FILE), &["-nographic", "-icount", "shift=0"])?;
     let status = loop {
         if let Some(status) = child.try_wait()? {
             break status;

@@ -11,60 +11,21 @@ use firmware_sim::frames::{
     HEADER_LEN, INPUT_LEN, MAGIC_INPUT, MAGIC_OUTPUT, OUTPUT_LEN, OutputRecord, Trailer, decode_header, decode_input,
     encode_header, encode_output, encode_trailer,
 };
-use firmware_sim::io::{AlphaSource, BlowingMeasurement, BlowingOutput, FixedRateLoop, PressureFrontEnd, RollEncoder};
+use firmware_sim::io::{FixedRateLoop, InputBoard};
 use semihosting::fs::File;
 use semihosting::io::{Read, Write};
 
 use crate::board::{BLOCKS, SysTickCounter, fail, stack_high_water};
 use crate::clocks::CORE_CLOCK_HZ;
 
-/// The QEMU board: sensors and valves bound to semihosting files.
-struct ReplayBoard {
-    input: File,
-    sample: Input,
-    demand: [f32; 2],
-}
-
-impl ReplayBoard {
-    /// Loads the next sample; false at the end of the file.
-    fn next_sample(&mut self) -> bool {
-        let mut bytes = [0u8; INPUT_LEN];
-        if self.input.read_exact(&mut bytes).is_err() {
-            return false;
-        }
-        self.sample = decode_input(&bytes);
-        true
+/// Reads the next sample of `input` into `board`; false at the end of the file.
+fn next_sample(input: &mut File, board: &mut InputBoard) -> bool {
+    let mut bytes = [0u8; INPUT_LEN];
+    if input.read_exact(&mut bytes).is_err() {
+        return false;
     }
-}
-
-impl PressureFrontEnd for ReplayBoard {
-    fn read(&mut self) -> [f32; N_TAPS] {
-        self.sample.cp
-    }
-}
-
-impl RollEncoder for ReplayBoard {
-    fn angle_deg(&mut self) -> f32 {
-        self.sample.phi_deg
-    }
-}
-
-impl AlphaSource for ReplayBoard {
-    fn alpha_deg(&mut self) -> f32 {
-        self.sample.alpha_deg
-    }
-}
-
-impl BlowingMeasurement for ReplayBoard {
-    fn cmu(&mut self) -> [f32; 2] {
-        [self.sample.cmu_port, self.sample.cmu_stbd]
-    }
-}
-
-impl BlowingOutput for ReplayBoard {
-    fn set_cmu(&mut self, cmu: [f32; 2]) {
-        self.demand = cmu;
-    }
+    board.input = decode_input(&bytes);
+    true
 }
 
 /// Replays `input` and exits QEMU.
@@ -89,11 +50,11 @@ pub fn run(mut input: File, calibration_ticks: u32, calibration_instructions: u3
 
     let nan = f32::NAN;
     let sample = Input { phi_deg: nan, alpha_deg: nan, cmu_port: nan, cmu_stbd: nan, cp: [nan; N_TAPS] };
-    let mut board = ReplayBoard { input, sample, demand: [0.0; 2] };
+    let mut board = InputBoard::new(sample);
     let mut ticks = SysTickCounter;
     let mut trailer =
         Trailer { calibration_instructions, calibration_ticks, core_clock_hz: CORE_CLOCK_HZ, ..Trailer::default() };
-    while trailer.steps < n_samples && board.next_sample() {
+    while trailer.steps < n_samples && next_sample(&mut input, &mut board) {
         let result = fixed_rate.step(&mut board, &mut ticks);
         let record = OutputRecord {
             output: result.output,
@@ -118,7 +79,14 @@ pub fn run(mut input: File, calibration_ticks: u32, calibration_instructions: u3
         fail("trailer");
     }
     drop(output);
-    defmt::println!("done: {=u32} steps, stack {=u32} of {=u32} bytes", trailer.steps, stack_used, stack_size);
+    defmt::println!(
+        "done: {=u32} steps, last demand {=f32} {=f32}, stack {=u32} of {=u32} bytes",
+        trailer.steps,
+        board.demand[0],
+        board.demand[1],
+        stack_used,
+        stack_size
+    );
     cortex_m_semihosting::debug::exit(cortex_m_semihosting::debug::EXIT_SUCCESS);
     loop {
         cortex_m::asm::wfi();

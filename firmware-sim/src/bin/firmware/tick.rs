@@ -17,12 +17,8 @@ use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m::peripheral::{SCB, SYST};
 use cortex_m_rt::exception;
 use estimator_core::Input;
-use estimator_core::coeffs::N_TAPS;
 use estimator_core::sparse::Interpreted;
-use firmware_sim::io::{
-    AlphaSource, BlowingMeasurement, BlowingOutput, FixedRateLoop, PressureFrontEnd, RollEncoder, StepResult,
-    TickCounter,
-};
+use firmware_sim::io::{FixedRateLoop, InputBoard, StepResult, TickCounter};
 use firmware_sim::link::{Estimate, LinkReport, SampleInput, WARM_UP_STEPS};
 use heapless::spsc::{Consumer, Producer};
 
@@ -83,48 +79,11 @@ pub enum Flying {
 }
 
 impl Flying {
-    fn step(&mut self, board: &mut LinkBoard, ticks: &mut SysTickCounter) -> StepResult {
+    fn step(&mut self, board: &mut InputBoard, ticks: &mut SysTickCounter) -> StepResult {
         match self {
             Self::BuiltIn(fixed_rate) => fixed_rate.step(board, ticks),
             Self::Loaded(fixed_rate) => fixed_rate.step(board, ticks),
         }
-    }
-}
-
-/// The sensors and valves of a rig on the serial link: the sample's values, and the demand
-/// going back out with the estimate.
-struct LinkBoard {
-    input: Input,
-    demand: [f32; 2],
-}
-
-impl PressureFrontEnd for LinkBoard {
-    fn read(&mut self) -> [f32; N_TAPS] {
-        self.input.cp
-    }
-}
-
-impl RollEncoder for LinkBoard {
-    fn angle_deg(&mut self) -> f32 {
-        self.input.phi_deg
-    }
-}
-
-impl AlphaSource for LinkBoard {
-    fn alpha_deg(&mut self) -> f32 {
-        self.input.alpha_deg
-    }
-}
-
-impl BlowingMeasurement for LinkBoard {
-    fn cmu(&mut self) -> [f32; 2] {
-        [self.input.cmu_port, self.input.cmu_stbd]
-    }
-}
-
-impl BlowingOutput for LinkBoard {
-    fn set_cmu(&mut self, cmu: [f32; 2]) {
-        self.demand = cmu;
     }
 }
 
@@ -196,7 +155,9 @@ impl Ticker {
             stats.idle_ticks = stats.idle_ticks.wrapping_add(1);
             return;
         };
-        let mut board = LinkBoard { input: Input::from(&pending.input), demand: [f32::NAN; 2] };
+        // The sensors and valves of a rig on the serial link: the sample, and the demand going
+        // back out with the estimate.
+        let mut board = InputBoard::new(Input::from(&pending.input));
         let mut systick = SysTickCounter;
         let result = self.flying.step(&mut board, &mut systick);
         let latency_ticks = now().wrapping_sub(pending.arrival);
@@ -209,18 +170,7 @@ impl Ticker {
         }
         stats.latency_ticks_max = stats.latency_ticks_max.max(latency_ticks);
         stats.latency_ticks_sum += u64::from(latency_ticks);
-        let health = result.output.health;
-        let estimate = Estimate {
-            seq: pending.seq,
-            estimates: result.output.estimates(),
-            health: [health.flags, health.cp_missing, health.cp_rejected, health.cp_isolated],
-            demand_cmu: board.demand,
-            demand_moment: result.demand.moment,
-            controller_flags: result.controller_health.flags,
-            ticks_estimator: result.ticks_estimator,
-            ticks_total: result.ticks_total,
-            latency_ticks,
-        };
+        let estimate = Estimate::from_step(pending.seq, &result, latency_ticks);
         if self.estimates.enqueue(estimate).is_err() {
             stats.dropped_estimates = stats.dropped_estimates.wrapping_add(1);
         }
