@@ -539,3 +539,57 @@ pub fn totals(runs: &[HilRun]) -> String {
         t.blobs_rejected
     )
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn estimate(seq: u32, cl: f32) -> Estimate {
+        Estimate {
+            seq,
+            estimates: [cl; 10],
+            health: [0; 4],
+            demand_cmu: [0.001, f32::NAN],
+            demand_moment: 0.0,
+            controller_flags: 0,
+            ticks_estimator: 7,
+            ticks_total: 9,
+            latency_ticks: 11,
+        }
+    }
+
+    #[test]
+    fn identical_bits_compare_equal_nan_included_and_timing_is_not_compared() {
+        let host = [estimate(0, 0.01), estimate(1, f32::NAN)];
+        let mut firmware = host;
+        firmware[1].ticks_estimator = 99;
+        let c = compare(&host, &firmware);
+        assert_eq!((c.steps, c.steps_not_identical), (2, 0));
+        assert!(c.max_abs.iter().all(|&d| d == 0.0));
+    }
+
+    #[test]
+    fn a_differing_bit_a_nan_and_a_missing_step_are_counted() {
+        let host = [estimate(0, 0.01), estimate(1, 0.02), estimate(2, 0.03)];
+        let mut firmware = vec![estimate(0, 0.01), estimate(1, 0.02)];
+        firmware[0].estimates[0] = f32::from_bits(0.01f32.to_bits() + 1);
+        firmware[0].health[2] = 4;
+        firmware[1].estimates[1] = f32::NAN;
+        let c = compare(&host, &firmware);
+        assert_eq!((c.steps, c.steps_not_identical), (2, 3));
+        assert!(c.max_abs[0] > 0.0 && c.max_abs[0] < 1e-8, "{:?}", c.max_abs);
+        assert_eq!(c.max_abs[1], f32::INFINITY);
+        assert_eq!(c.max_abs[12], 4.0, "cp_rejected");
+    }
+
+    #[test]
+    fn the_host_loop_steps_the_firmware_loop_and_notes_its_demand() {
+        let input = SampleInput { phi_deg: 5.0, alpha_deg: 20.0, cmu: [0.0, 0.0], cp: [-0.4; 12] };
+        let samples = vec![input; 50];
+        let built_in = host_loop(&samples, None);
+        let loaded = host_loop(&samples, Some(&estimator_core::coeffs::BUILT_IN));
+        assert_eq!(compare(&built_in, &loaded).steps_not_identical, 0, "generated code = interpreted tables");
+        assert!(built_in.iter().all(|e| e.demand_cmu.iter().all(|c| c.is_finite())));
+        assert_eq!(built_in.last().map(|e| e.seq), Some(49));
+    }
+}
