@@ -223,22 +223,16 @@ impl PressureFilter {
             }
         }
         repeated &= finite_mask;
-        // The usual step: no measured channel repeated its reading and none had a run of
-        // repeats going, so every count stays zero.
-        if repeated == 0 && self.repeating & finite_mask == 0 {
-            return 0;
-        }
+        // Only channels that repeated now or had a run of repeats going change their count (the
+        // usual step has none); a count is non-zero after the update exactly when the channel
+        // repeated, and only a channel that repeated can be stuck.
+        let touched = (repeated | self.repeating) & finite_mask;
+        self.repeating = (self.repeating & !touched) | repeated;
         let mut stuck = 0u16;
-        for (tap, repeats) in self.repeats.iter_mut().enumerate() {
-            let bit = 1u16 << tap;
-            if finite_mask & bit != 0 {
-                *repeats = if repeated & bit != 0 { repeats.saturating_add(1) } else { 0 };
-            }
-            stuck |= u16::from(*repeats >= STUCK_AFTER_STEPS - 1) << tap;
-            if *repeats == 0 {
-                self.repeating &= !bit;
-            } else {
-                self.repeating |= bit;
+        for tap in set_bits(touched) {
+            if let Some(repeats) = self.repeats.get_mut(tap) {
+                *repeats = if repeated & (1 << tap) != 0 { repeats.saturating_add(1) } else { 0 };
+                stuck |= u16::from(*repeats >= STUCK_AFTER_STEPS - 1) << tap;
             }
         }
         stuck
@@ -252,31 +246,46 @@ impl PressureFilter {
         if pass_mask == finite_mask && self.isolated == 0 && self.streaking & finite_mask == 0 {
             return pass_mask;
         }
-        for tap in 0..N_TAPS {
-            let bit = 1u16 << tap;
-            if finite_mask & bit == 0 {
-                continue;
-            }
-            let passes = pass_mask & bit != 0;
-            let isolated = self.isolated & bit != 0;
-            let streak = &mut self.streak[tap];
-            // A rejection of a healthy channel, or a pass of an isolated one, extends the streak.
-            *streak = if passes == isolated { streak.saturating_add(1) } else { 0 };
-            if *streak >= model.isolate_after.max(1) {
-                self.isolated ^= bit;
+        health.cp_rejected |= finite_mask & !pass_mask;
+        // A rejection of a healthy channel, or a pass of an isolated one, extends its streak;
+        // any other measured channel's streak ends. Only the set bits are visited: one or two
+        // channels in a fault, not all twelve.
+        let extending = finite_mask & !(pass_mask ^ self.isolated) & ALL_TAPS;
+        let ending = finite_mask & (pass_mask ^ self.isolated) & self.streaking;
+        for tap in set_bits(ending) {
+            if let Some(streak) = self.streak.get_mut(tap) {
                 *streak = 0;
             }
-            if *streak == 0 {
-                self.streaking &= !bit;
-            } else {
-                self.streaking |= bit;
-            }
-            if !passes {
-                health.cp_rejected |= bit;
+        }
+        self.streaking &= !ending;
+        let isolate_after = model.isolate_after.max(1);
+        for tap in set_bits(extending) {
+            if let Some(streak) = self.streak.get_mut(tap) {
+                let bit = 1u16 << tap;
+                *streak = streak.saturating_add(1);
+                if *streak >= isolate_after {
+                    self.isolated ^= bit;
+                    *streak = 0;
+                    self.streaking &= !bit;
+                } else {
+                    self.streaking |= bit;
+                }
             }
         }
         pass_mask & !self.isolated
     }
+}
+
+/// The indices of the set bits of `mask`, lowest first.
+fn set_bits(mut mask: u16) -> impl Iterator<Item = usize> {
+    core::iter::from_fn(move || {
+        if mask == 0 {
+            return None;
+        }
+        let index = mask.trailing_zeros() as usize;
+        mask &= mask - 1;
+        Some(index)
+    })
 }
 
 // The three matrix products below are functions of their own (`inline(never)`), each given
