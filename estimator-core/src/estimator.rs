@@ -539,7 +539,7 @@ mod tests {
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(64))]
 
-        /// Issue 16, item 6 (<https://github.com/issues/16>): under garbage every final estimate
+        /// Issue 16, item 6: under garbage every final estimate
         /// stays within the envelope with its margin, every step at which an unbounded
         /// estimator (same state, an envelope far wider) leaves it is flagged, and an unflagged
         /// step passes every estimate bit for bit.
@@ -577,7 +577,7 @@ mod tests {
         (demands, cmu)
     }
 
-    /// Issue 16, item 5 (<https://github.com/issues/16>): with the blowing measurement lost
+    /// Issue 16, item 5: with the blowing measurement lost
     /// after 1 s, the plant runs on the Cmu predicted from the demands and follows the plant of
     /// an estimator that still measures it; holding the last Cmu (no demand noted) does not.
     #[test]

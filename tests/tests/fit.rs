@@ -70,7 +70,7 @@ fn short(kinds: &[RunKind]) -> firmware_sim::dataset::Dataset {
     record(12.0, &[10.0], kinds, BlowingSides::Port)
 }
 
-/// Issue 16, item 5 (<https://github.com/issues/16>): the actuator response is fitted on the
+/// Issue 16, item 5: the actuator response is fitted on the
 /// recording's commanded Cmu (the tunnel's valve: 5 ms dead time, 3 ms lag, unit gain); a
 /// recording without command columns gets the identity, and the model card says so.
 #[test]

@@ -121,7 +121,7 @@ fn every_loader_survives_its_fuzzer_with_typed_errors() {
     }
 }
 
-/// Also issue 16, item 6 (<https://github.com/issues/16>): the garbage drives the estimate
+/// Also issue 16, item 6: the garbage drives the estimate
 /// without the envelope far beyond it (to 0.39), yet no estimate leaves the envelope with its
 /// margin and every step that had to be limited is flagged.
 #[test]
@@ -139,7 +139,7 @@ fn a_million_soak_steps_stay_finite_and_bounded() {
     assert_eq!(outcome.beyond_envelope_steps, 0, "{outcome:?}");
 }
 
-/// Issue 16, item 5 (<https://github.com/issues/16>): with the blowing measurement lost from
+/// Issue 16, item 5: with the blowing measurement lost from
 /// 2 s on, the replay notes the recorded commands as the demand and the plant runs on the Cmu
 /// the fitted actuator response predicts: its moment follows the one of the measured Cmu (the
 /// true Cmu path) within a tenth of its RMS, where holding the last Cmu (a recording without

@@ -339,7 +339,7 @@ mod tests {
         assert!(outcome.worst_error > 0.0, "faults must move the estimate: {outcome:?}");
     }
 
-    /// Issue 16, item 6 (<https://github.com/issues/16>): the soak's garbage drives the
+    /// Issue 16, item 6: the soak's garbage drives the
     /// estimate beyond the envelope (0.39 before it), every such step is limited and flagged,
     /// and no estimate leaves the envelope with its margin.
     #[test]
