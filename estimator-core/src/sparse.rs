@@ -141,27 +141,44 @@ impl SparseModel {
     /// extended by the constant 1 (the padding factor), in factor order, and the terms are
     /// summed in order. The factor index is masked to the table's 8 entries (both past the
     /// variables are 1), so the loop needs no bounds check; validation rejects such indices.
+    ///
+    /// The indicators are computed only when a term has a gate: the plant models have none,
+    /// and their indicators cost about a fifth of an interpreted model (issue 16: a loaded set's
+    /// worst step, 3,327 -> 3,095 instructions on the M4F). The sum is the same, bit for bit,
+    /// as evaluating every indicator first: the terms and their order do not change.
     #[must_use]
     pub fn eval(&self, vars: &[f32; MAX_VARS]) -> f32 {
         let mut table = [1.0f32; FACTOR_TABLE_LEN];
+        for (slot, &value) in table.iter_mut().zip(vars) {
+            *slot = value;
+        }
+        // `-0.0` is the identity of f32 addition, so the first term is not added to a zero.
+        let mut sum = -0.0f32;
+        let mut rest = self.active_terms();
+        while let [term, tail @ ..] = rest {
+            if term.monomial.gate_mask != 0 {
+                return self.eval_gated(&table, rest, sum);
+            }
+            sum += term_value(term, &table);
+            rest = tail;
+        }
+        sum
+    }
+
+    /// The rest of [`SparseModel::eval`] from the first gated term on: the indicators, then
+    /// the remaining `terms` added to `sum` in order, a gated-off term skipped.
+    #[inline(never)]
+    fn eval_gated(&self, table: &[f32; FACTOR_TABLE_LEN], terms: &[Term], mut sum: f32) -> f32 {
         let mut active = 0u8;
-        for (var_idx, (&value, &threshold)) in vars.iter().zip(&self.gate_threshold).enumerate() {
-            table[var_idx] = value;
+        for (var_idx, (&value, &threshold)) in table.iter().zip(&self.gate_threshold).enumerate() {
             if indicator(value, threshold) {
                 active |= 1 << var_idx;
             }
         }
-        // `-0.0` is the identity of f32 addition, so the first term is not added to a zero.
-        let mut sum = -0.0f32;
-        for term in self.active_terms() {
-            if term.monomial.gate_mask & !active != 0 {
-                continue;
+        for term in terms {
+            if term.monomial.gate_mask & !active == 0 {
+                sum += term_value(term, table);
             }
-            let mut product = term.coeff;
-            for &factor in &term.monomial.factors {
-                product *= table[usize::from(factor) % FACTOR_TABLE_LEN];
-            }
-            sum += product;
         }
         sum
     }
@@ -174,6 +191,16 @@ impl SparseModel {
             .map(|term| f64::from(term.coeff) * term.monomial.eval_f64(vars, &self.gate_threshold))
             .sum()
     }
+}
+
+/// A term's coefficient times its [`MAX_DEGREE`] factors from `table`, in factor order.
+#[inline(always)]
+fn term_value(term: &Term, table: &[f32; FACTOR_TABLE_LEN]) -> f32 {
+    let mut product = term.coeff;
+    for &factor in &term.monomial.factors {
+        product *= table[usize::from(factor) % FACTOR_TABLE_LEN];
+    }
+    product
 }
 
 /// Which of a coefficient set's sparse models.
@@ -259,6 +286,37 @@ mod tests {
             }
             (coeff, powers, gate_mask)
         })
+    }
+
+    /// The evaluation as it was before the indicators became lazy: every indicator first, then
+    /// every term in order, a gated-off one skipped.
+    fn eager(model: &SparseModel, vars: &[f32; MAX_VARS]) -> f32 {
+        let mut table = [1.0f32; FACTOR_TABLE_LEN];
+        table[..MAX_VARS].copy_from_slice(vars);
+        let active =
+            (0..MAX_VARS).filter(|&v| indicator(vars[v], model.gate_threshold[v])).fold(0u8, |mask, v| mask | 1 << v);
+        model.active_terms().iter().filter(|t| t.monomial.gate_mask & !active == 0).fold(-0.0f32, |sum, term| {
+            sum + term.monomial.factors.iter().fold(term.coeff, |p, &f| p * table[usize::from(f) % FACTOR_TABLE_LEN])
+        })
+    }
+
+    proptest! {
+        /// The lazy indicators give the eager evaluation's sum bit for bit, wherever the first
+        /// gated term sits and whether its gate is open or shut (issue 16).
+        #[test]
+        fn lazy_indicators_sum_bit_for_bit_like_eager_ones(
+            terms in proptest::collection::vec(term_strategy(), 0..=MAX_TERMS),
+            vars in proptest::array::uniform6(prop_oneof![Just(0.0f32), -2.0f32..2.0]),
+            threshold in proptest::array::uniform6(0.0f32..0.5),
+        ) {
+            let mut model = SparseModel { gate_threshold: threshold, ..SparseModel::ZERO };
+            for (slot, &(coeff, powers, gate_mask)) in model.terms.iter_mut().zip(&terms) {
+                let monomial = Monomial::from_powers(&powers, gate_mask).expect("degree within the limit");
+                *slot = Term { coeff, monomial };
+            }
+            model.n_terms = terms.len() as u8;
+            prop_assert_eq!(model.eval(&vars).to_bits(), eager(&model, &vars).to_bits());
+        }
     }
 
     proptest! {
