@@ -96,15 +96,8 @@ pub fn compare(host: &[Estimate], firmware: &[Estimate]) -> HilComparison {
         let (a, b) = (fields(host), fields(firmware));
         let mut identical = host.seq == firmware.seq;
         for field in 0..a.len() {
-            let same = a[field].to_bits() == b[field].to_bits();
-            identical &= same;
-            let diff = if same || (a[field].is_nan() && b[field].is_nan()) {
-                0.0
-            } else if a[field].is_nan() || b[field].is_nan() {
-                f32::INFINITY
-            } else {
-                (a[field] - b[field]).abs()
-            };
+            identical &= a[field].to_bits() == b[field].to_bits();
+            let diff = qemu::abs_diff(a[field], b[field]);
             max_abs[field] = max_abs[field].max(diff);
         }
         steps_not_identical += usize::from(!identical);
@@ -345,7 +338,7 @@ pub fn hil(
     let socket_dir = tempfile::Builder::new().prefix("hil").tempdir().context("creating the socket folder")?;
     let started = Instant::now();
     let (mut emulator, mut port) = boot(&elf, socket_dir.path(), dir, &dir.join(qemu::LOG_FILE))?;
-    let FromFirmware::Hello { protocol, schema_hash, .. } = port.receive()? else {
+    let FromFirmware::Hello { protocol, .. } = port.receive()? else {
         bail!("the firmware did not start with Hello");
     };
     if protocol != link::PROTOCOL_VERSION {
@@ -370,7 +363,6 @@ pub fn hil(
             })
         }
     };
-    let _ = schema_hash;
     let mut firmware = Vec::with_capacity(samples.len());
     for (seq, input) in samples.iter().enumerate() {
         port.send(&ToFirmware::Sample { seq: seq as u32, input: *input })?;

@@ -162,7 +162,7 @@ pub fn run_firmware(elf: &Path, dir: &Path, timeout: Duration) -> anyhow::Result
 }
 
 /// `|a - b|`, 0 for identical bits (NaN = NaN), infinite when only one is NaN.
-fn abs_diff(a: f32, b: f32) -> f32 {
+pub(crate) fn abs_diff(a: f32, b: f32) -> f32 {
     if a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()) {
         0.0
     } else if a.is_nan() || b.is_nan() {
