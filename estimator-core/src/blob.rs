@@ -42,7 +42,7 @@ pub const HEADER_LEN: usize = 20;
 /// Written by hand (const string formatting does not exist); a unit test checks that the
 /// numbers in it are the current values of the constants. Update it with any change of a field
 /// or size: its hash, [`SCHEMA_HASH`], is what makes an old blob fail to load.
-pub const SCHEMA: &str = "rlcs coefficient set; schema_version=6; \
+pub const SCHEMA: &str = "rlcs coefficient set; schema_version=7; \
     N_TAPS=12; PRESSURE_RANK=10; N_PRESSURE_INPUTS=5; N_ALPHA=8; MAX_TERMS=16; MAX_VARS=6; MAX_DEGREE=3; \
     N_PLANT_VARS=5; N_COUPLING_VARS=6; DEMAND_SLOTS=64; \
     CoefficientSet{schema_version:u16,dt_s:f32,rate_filter:RateFilter,alpha_schedule_deg:[f32;N_ALPHA],\
@@ -53,7 +53,7 @@ pub const SCHEMA: &str = "rlcs coefficient set; schema_version=6; \
     clbeta_per_rad:f32,clp:f32,clpdot:f32,clpp:f32,vortex_gain:f32,bias:f32,half_span_time_s:f32}; \
     PressureModel{rank:u8,a:[[f32;PRESSURE_RANK];PRESSURE_RANK],b:[[f32;N_PRESSURE_INPUTS];PRESSURE_RANK],\
     c:[[f32;PRESSURE_RANK];N_TAPS],cp_mean:[f32;N_TAPS],gain:[[f32;N_TAPS];PRESSURE_RANK],\
-    innovation_std:[f32;N_TAPS],gate_sigma:f32,isolate_after:u16,cl_weights:[[f32;N_TAPS];N_ALPHA],cl_offset:[f32;N_ALPHA]}; \
+    innovation_std:[f32;N_TAPS],gate_sigma:f32,isolate_after:u16,settle_steps:u16,cl_weights:[[f32;N_TAPS];N_ALPHA],cl_offset:[f32;N_ALPHA]}; \
     FusionParams{rho:f32,gain:f32}; \
     PlantParams{slow_pole:f32,cmu_max:f32,model:SparseModel}; \
     SparseModel{terms:[Term;MAX_TERMS],n_terms:u8,gate_threshold:[f32;MAX_VARS]}; \
@@ -95,8 +95,9 @@ const N_F32: usize =
 /// Every u8 of a [`CoefficientSet`]: `n_alpha`, `pressure.rank`, the three sparse models,
 /// `controller.inversion_iterations` and the two actuator responses' `delay_steps`.
 const N_U8: usize = 1 + 1 + 3 * U8_PER_SPARSE + 1 + 2;
-/// Every u16 of a [`CoefficientSet`]: `schema_version` and `pressure.isolate_after`.
-const N_U16: usize = 2;
+/// Every u16 of a [`CoefficientSet`]: `schema_version`, `pressure.isolate_after` and
+/// `pressure.settle_steps`.
+const N_U16: usize = 3;
 
 /// Largest payload, bytes: postcard writes an f32 as 4 bytes, a u8 as 1 byte and a u16 as a
 /// varint of at most 3 bytes; fixed-size arrays and structs add nothing. A unit test encodes a
@@ -513,6 +514,7 @@ fn check_all_finite(set: &CoefficientSet) -> Result<(), BlobError> {
         innovation_std,
         gate_sigma,
         isolate_after: _,
+        settle_steps: _,
         cl_weights,
         cl_offset,
     } = pressure;
@@ -604,7 +606,7 @@ mod tests {
 
     use super::*;
     use crate::coeffs::{N_COUPLING_VARS, N_PLANT_VARS};
-    use crate::sparse::ONE_FACTOR;
+    use crate::sparse::{Factor, ONE_FACTOR};
 
     /// Distinct, non-zero, exactly representable f32 values in ascending order.
     struct Seq {
@@ -629,7 +631,11 @@ mod tests {
             let terms = array::from_fn(|term_idx| Term {
                 coeff: if term_idx % 2 == 0 { self.next() } else { -self.next() },
                 monomial: Monomial {
-                    factors: [(term_idx % 3) as u8, (term_idx % 3 + term_idx % 4) as u8, ONE_FACTOR],
+                    factors: [
+                        Factor::var(term_idx % 3).unwrap_or(ONE_FACTOR),
+                        Factor::var(term_idx % 3 + term_idx % 4).unwrap_or(ONE_FACTOR),
+                        ONE_FACTOR,
+                    ],
                     gate_mask: (term_idx % 64) as u8,
                 },
             });
@@ -674,6 +680,7 @@ mod tests {
                 innovation_std: seq.arr(),
                 gate_sigma: seq.next(),
                 isolate_after: 300,
+                settle_steps: 150,
                 cl_weights: seq.mat(),
                 cl_offset: seq.arr(),
             },
@@ -702,7 +709,7 @@ mod tests {
     fn large_set() -> CoefficientSet {
         let big = f32::MAX;
         let sparse = SparseModel {
-            terms: [Term { coeff: big, monomial: Monomial { factors: [u8::MAX; MAX_DEGREE], gate_mask: u8::MAX } };
+            terms: [Term { coeff: big, monomial: Monomial { factors: [ONE_FACTOR; MAX_DEGREE], gate_mask: u8::MAX } };
                 MAX_TERMS],
             n_terms: u8::MAX,
             gate_threshold: [big; MAX_VARS],
@@ -738,6 +745,7 @@ mod tests {
                 innovation_std: [big; N_TAPS],
                 gate_sigma: big,
                 isolate_after: u16::MAX,
+                settle_steps: u16::MAX,
                 cl_weights: [[big; N_TAPS]; N_ALPHA],
                 cl_offset: [big; N_ALPHA],
             },
@@ -828,7 +836,10 @@ mod tests {
             fn sparse(&mut self, model: &SparseModel) {
                 for term in &model.terms {
                     self.f32s(&[term.coeff]);
-                    self.0.extend_from_slice(&term.monomial.factors);
+                    // A factor is written as the one byte of its index, as the `u8` it was.
+                    for factor in term.monomial.factors {
+                        self.u8(factor.index() as u8);
+                    }
                     self.u8(term.monomial.gate_mask);
                 }
                 self.u8(model.n_terms);
@@ -867,6 +878,7 @@ mod tests {
         w.f32s(&p.innovation_std);
         w.f32s(&[p.gate_sigma]);
         w.u16(p.isolate_after);
+        w.u16(p.settle_steps);
         w.f32s(p.cl_weights.as_flattened());
         w.f32s(&p.cl_offset);
         w.f32s(&[set.fusion.rho, set.fusion.gain]);
@@ -887,6 +899,19 @@ mod tests {
 
         let blob = valid_blob();
         assert_eq!(&blob[HEADER_LEN..], w.0.as_slice());
+    }
+
+    /// A factor is one byte, its index; a byte that names no factor does not decode.
+    #[test]
+    fn blob_factor_is_its_index_byte() {
+        let mut buffer = [0u8; 4];
+        for var_idx in 0..=MAX_VARS {
+            let factor = Factor::var(var_idx).unwrap_or(ONE_FACTOR);
+            assert_eq!(postcard::to_slice(&factor, &mut buffer).map(|bytes| bytes.to_vec()), Ok(vec![var_idx as u8]));
+            assert_eq!(postcard::from_bytes::<Factor>(&[var_idx as u8]), Ok(factor));
+        }
+        assert!(postcard::from_bytes::<Factor>(&[MAX_VARS as u8 + 1]).is_err());
+        assert!(postcard::from_bytes::<Factor>(&[u8::MAX]).is_err());
     }
 
     #[test]
@@ -1078,11 +1103,11 @@ mod tests {
             (|s| s.controller.cmu_max = 0.0, "controller.cmu_max must be > 0"),
             (|s| s.pressure.rank = 4, "pressure modes beyond rank must be zero"),
             (
-                |s| s.coupling.terms[15].monomial.factors[2] = ONE_FACTOR + 1,
+                |s| s.coupling.terms[15].monomial.factors = [ONE_FACTOR, Factor::Var0, ONE_FACTOR],
                 "coupling factors must be variables or ONE_FACTOR, ascending",
             ),
             (
-                |s| s.plant[1].model.terms[0].monomial.factors = [2, 1, ONE_FACTOR],
+                |s| s.plant[1].model.terms[0].monomial.factors = [Factor::Var2, Factor::Var1, ONE_FACTOR],
                 "plant[1] factors must be variables or ONE_FACTOR, ascending",
             ),
             (|s| s.actuator[0].pole = f32::NAN, "actuator.pole is not finite"),

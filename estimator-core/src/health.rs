@@ -45,6 +45,10 @@ impl Health {
     /// (`crate::Estimator::note_demand`): the jet's Cmu was predicted from the demands through the
     /// fitted actuator response (`crate::actuator`). Set instead of [`Health::CMU_HELD`].
     pub const CMU_FROM_DEMAND: u16 = 1 << 9;
+    /// The pressure filter is still settling from its start at the mean pressures: every
+    /// finite reading corrects it and none is gated (`crate::coeffs::PressureModel::settle_steps`).
+    /// Not a fault.
+    pub const PRESSURE_SETTLING: u16 = 1 << 10;
 
     /// True when no flag and no channel bit is set.
     #[must_use]

@@ -9,7 +9,9 @@
 //! a missing channel (NaN) skips its update, and a channel whose innovation exceeds
 //! `gate_sigma` times its steady-state standard deviation is rejected and flagged; after
 //! `isolate_after` consecutive rejections it is isolated until it passes the gate as many times
-//! in a row.
+//! in a row. The gate is armed once the filter has settled from its start at the mean pressures
+//! (`settle_steps`; until then every finite reading is used and the step is flagged
+//! `PRESSURE_SETTLING`).
 //!
 //! A stuck channel (a frozen ADC or a blocked tube) can stay inside the gate for a long time,
 //! because its innovation only grows as the true pressure moves away. But a live pressure
@@ -65,6 +67,8 @@ pub struct PressureFilter {
     repeats: [u8; N_TAPS],
     /// Channels whose `repeats` is not zero.
     repeating: u16,
+    /// Steps left before the gate is armed (`PressureModel::settle_steps`).
+    settling: u16,
 }
 
 /// Result of one pressure step.
@@ -110,6 +114,7 @@ impl PressureFilter {
             last_bits: [NO_READING_BITS; N_TAPS],
             repeats: [0; N_TAPS],
             repeating: 0,
+            settling: model.settle_steps,
         }
     }
 
@@ -151,28 +156,30 @@ impl PressureFilter {
             *value = nu;
             pass_mask |= u16::from(nu.abs() <= limit) << tap;
         }
-        // A passing channel has a finite innovation, hence a finite reading: the readings need
-        // a look of their own only when some channel failed.
-        let finite_mask = if pass_mask == ALL_TAPS {
-            ALL_TAPS
-        } else {
-            cp.iter().enumerate().fold(0u16, |mask, (tap, value)| mask | u16::from(value.is_finite()) << tap)
-        };
+        // A passing channel has a finite innovation, hence a finite reading: only the channels
+        // that failed need a look of their own (one or two in a fault or at start-up).
+        let finite_mask = set_bits(!pass_mask & ALL_TAPS).fold(ALL_TAPS, |mask, tap| {
+            let finite = cp.get(tap).is_some_and(|value| value.is_finite());
+            if finite { mask } else { mask & !(1 << tap) }
+        });
         pass_mask &= finite_mask;
         health.cp_missing |= !finite_mask & ALL_TAPS;
-        // When every measured channel fails at once, the prediction is off (start-up, a jump of
-        // the inputs), not twelve sensors: accept them all rather than lose the filter.
-        if pass_mask == 0 {
+        // While the filter settles from the mean pressures, and when every measured channel
+        // fails at once (a jump of the inputs), the prediction is off, not the sensors: accept
+        // them all rather than lose the filter.
+        if self.settling != 0 {
+            self.settling -= 1;
+            health.set(Health::PRESSURE_SETTLING);
+            pass_mask = finite_mask;
+        } else if pass_mask == 0 {
             pass_mask = finite_mask;
         }
         // A frozen reading never passes, even when all are frozen (the whole front end hung).
         pass_mask &= !self.stuck_mask(cp, finite_mask);
         let used_mask = self.track_faults(model, finite_mask, pass_mask, health);
-        if used_mask != ALL_TAPS {
-            for (tap, value) in innovation.iter_mut().enumerate() {
-                if used_mask & (1 << tap) == 0 {
-                    *value = 0.0;
-                }
+        for tap in set_bits(!used_mask & ALL_TAPS) {
+            if let Some(value) = innovation.get_mut(tap) {
+                *value = 0.0;
             }
         }
         let measured = used_mask != 0;
@@ -557,6 +564,25 @@ mod tests {
         assert!((middle - (low + 0.25 * (high - low))).abs() < 1e-7, "{low} {high} {middle}");
         let beyond = estimate(SchedulePosition { lower: 99, upper: 99, weight: 0.0 });
         assert!(beyond.is_finite(), "an index past the schedule is clamped, never a panic");
+    }
+
+    /// Until the filter has settled from its start at the mean pressures, every finite reading
+    /// corrects it and the step is flagged; then the gate is armed and a biased channel fails.
+    #[test]
+    fn every_channel_corrects_while_settling_then_the_gate_is_armed() {
+        let mut model = crate::prior::full_size_fixture().pressure;
+        model.settle_steps = 5;
+        let mut filter = PressureFilter::new(&model);
+        for step in 0..8 {
+            let mut cp = live(&model, step);
+            cp[6] += 1.0;
+            let mut health = Health::default();
+            let estimate = filter.step(&model, SchedulePosition::FIRST, &[0.0; N_PRESSURE_INPUTS], &cp, &mut health);
+            let settling = step < 5;
+            assert!(estimate.measured);
+            assert_eq!(health.has(Health::PRESSURE_SETTLING), settling, "step {step}");
+            assert_eq!(health.cp_rejected, if settling { 0 } else { 1 << 6 }, "step {step}");
+        }
     }
 
     #[test]

@@ -13,7 +13,7 @@ use crate::coeffs::{
     N_PLANT_VARS, N_PRESSURE_INPUTS, N_TAPS, PRESSURE_RANK, PlantParams, PressureModel, RateFilter, SCHEMA_VERSION,
     coupling_var, plant_var,
 };
-use crate::sparse::{Monomial, ONE_FACTOR, SparseModel, Term};
+use crate::sparse::{Factor, Monomial, ONE_FACTOR, SparseModel, Term};
 
 /// `b / (2 U)` of the paper's wing (b = 0.287 m) at 6.5 m/s, s.
 const HALF_SPAN_TIME_S: f32 = 0.287 / (2.0 * 6.5);
@@ -68,8 +68,16 @@ const fn plant_prior(sign: f32) -> PlantParams {
     PlantParams { slow_pole: 0.0, cmu_max: 0.009, model }
 }
 
+const _: () = assert!(Factor::var(plant_var::CL_AFC).is_some() && Factor::var(plant_var::CMU).is_some());
+
+/// The monomial of one variable (degree 1).
 const fn single(var_idx: usize) -> Monomial {
-    Monomial { factors: [var_idx as u8, ONE_FACTOR, ONE_FACTOR], gate_mask: 0 }
+    // The callers name a model variable (checked below), so the fallback is never taken.
+    let factor = match Factor::var(var_idx) {
+        Some(factor) => factor,
+        None => ONE_FACTOR,
+    };
+    Monomial { factors: [factor, ONE_FACTOR, ONE_FACTOR], gate_mask: 0 }
 }
 
 /// The physical prior at the paper's geometry and 1 kHz. The pressure path has no modes yet
@@ -102,6 +110,7 @@ pub const PRIOR: CoefficientSet = CoefficientSet {
         innovation_std: [1.0; N_TAPS],
         gate_sigma: 6.0,
         isolate_after: 20,
+        settle_steps: 0,
         cl_weights: [[0.0; N_TAPS]; N_ALPHA],
         cl_offset: [0.0; N_ALPHA],
     },

@@ -17,7 +17,7 @@ pub use compiled::{BUILT_IN, CompiledDefault};
 pub use generated::DEFAULT;
 
 /// Version of the coefficient-set layout. Bump it whenever a field or a size changes.
-pub const SCHEMA_VERSION: u16 = 6;
+pub const SCHEMA_VERSION: u16 = 7;
 
 /// Number of upper-surface pressure taps.
 pub const N_TAPS: usize = 12;
@@ -207,6 +207,12 @@ pub struct PressureModel {
     pub gate_sigma: f32,
     /// Consecutive rejections after which a channel is isolated as faulty.
     pub isolate_after: u16,
+    /// Steps from the start during which every finite reading corrects the state, ungated:
+    /// the filter starts at the mean pressures, and until its state has converged the gate
+    /// would take good channels for faults (at 20 deg it rejected half of them and isolated
+    /// them for 0.3 s). Fitted on the host from the filter's error dynamics
+    /// (`host-tools fit`, `settle_steps`).
+    pub settle_steps: u16,
     /// Map from filtered pressures to C_l at each breakpoint of the set's alpha schedule
     /// (`crate::schedule`; interpolated between them). One map for all alphas errs twice as
     /// much: the vortex suction that the taps see changes its share of the roll moment with

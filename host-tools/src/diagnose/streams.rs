@@ -274,6 +274,7 @@ fn innovations(run: &Run, set: &CoefficientSet, phi_rad: &[f64], cmu: &[Vec<f64>
     let model = PressureModelF64 {
         gate_sigma: GATE_SIGMA,
         isolate_after: u16::MAX,
+        settle_steps: 0,
         ..PressureModelF64::from_core(
             &set.pressure,
             &set.alpha_schedule_deg[..usize::from(set.n_alpha).clamp(1, N_ALPHA)],

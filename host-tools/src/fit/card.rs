@@ -238,7 +238,7 @@ fn pressure_section(md: &mut String, report: &FitReport) {
     let p = &report.pressure;
     let _ = writeln!(
         md,
-        "## Disturbance model: time-shifted pressure model and Kalman filter\n\nRank {} of {} ({:.4} of the energy), spectral radius {:.5}{}; steady-state gain from the DARE ({} iterations, residual {:.1e}). Training RMS: Cp one-step prediction {:.3e}, filtered Cp {:.3e}; map to C_l {:.3e} (C_l standard deviation {:.3e}).\n",
+        "## Disturbance model: time-shifted pressure model and Kalman filter\n\nRank {} of {} ({:.4} of the energy), spectral radius {:.5}{}; steady-state gain from the DARE ({} iterations, residual {:.1e}). Training RMS: Cp one-step prediction {:.3e}, filtered Cp {:.3e}; map to C_l {:.3e} (C_l standard deviation {:.3e}). The innovation gate is armed {} steps after the start, once the filter has settled from the mean pressures.\n",
         p.rank,
         p.data_rank,
         p.energy_kept,
@@ -249,7 +249,8 @@ fn pressure_section(md: &mut String, report: &FitReport) {
         p.cp_prediction_rms,
         p.cp_filtered_rms,
         p.cl_rms,
-        p.cl_std
+        p.cl_std,
+        p.settle_steps
     );
     if !p.dead_taps.is_empty() {
         let names: Vec<String> = p.dead_taps.iter().map(|tap| format!("cp{tap:02}")).collect();

@@ -237,6 +237,9 @@ pub struct PressureModelF64 {
     pub gate_sigma: f64,
     /// Consecutive rejections after which a channel is isolated.
     pub isolate_after: u16,
+    /// Steps from the start during which every finite reading is used, ungated
+    /// ([`settle_steps`]).
+    pub settle_steps: u16,
     /// Map from filtered pressures to `C_l`, scheduled on alpha.
     pub cl_map: ClSchedule,
 }
@@ -337,6 +340,7 @@ impl PressureModelF64 {
             innovation_std: self.innovation_std.map(|value| value as f32),
             gate_sigma: self.gate_sigma as f32,
             isolate_after: self.isolate_after,
+            settle_steps: self.settle_steps,
             cl_weights: std::array::from_fn(|idx| {
                 let last = self.cl_map.weights.len().saturating_sub(1);
                 self.cl_map.weights.get(idx.min(last)).map_or([0.0; N_TAPS], |weights| weights.map(|w| w as f32))
@@ -365,6 +369,7 @@ impl PressureModelF64 {
             innovation_std: model.innovation_std.map(f64::from),
             gate_sigma: f64::from(model.gate_sigma),
             isolate_after: model.isolate_after,
+            settle_steps: model.settle_steps,
             cl_map: ClSchedule {
                 breakpoints_deg: (0..n)
                     .map(|idx| breakpoints_deg.get(idx).map_or(0.0, |&deg| f64::from(deg)))
@@ -434,6 +439,8 @@ pub struct PressureFitReport {
     /// Taps (1-based, `cpNN`) with finite data in fewer than half of the training samples,
     /// fitted as absent.
     pub dead_taps: Vec<usize>,
+    /// Steps after the start before the innovation gate is armed ([`settle_steps`]).
+    pub settle_steps: u16,
 }
 
 /// A fitted pressure path: the core's table, the same model in f64, and the report.
@@ -565,6 +572,7 @@ pub fn fit_pressure_model(
         }
     }
     model_f64.cl_map = map.schedule;
+    model_f64.settle_steps = settle_steps(&model_f64, &state_covariance(&reduced))?;
     let model = model_f64.to_core()?;
     let report = PressureFitReport {
         rank: pod.rank,
@@ -585,8 +593,61 @@ pub fn fit_pressure_model(
         n_dynamics_samples: dynamics.n_samples,
         n_cl_samples: map.n_samples,
         dead_taps: (0..N_TAPS).filter(|&tap| dead[tap]).map(|tap| tap + 1).collect(),
+        settle_steps: model_f64.settle_steps,
     };
     Ok(PressureFit { model, model_f64, report })
+}
+
+/// Covariance of the reduced state over the training samples (the POD coordinates are centred,
+/// so their mean is zero).
+fn state_covariance(reduced: &[ReducedRun]) -> DMatrix<f64> {
+    let rank = reduced.first().map_or(0, |run| run.coords.nrows());
+    let mut sum = DMatrix::zeros(rank, rank);
+    let mut count = 0usize;
+    for run in reduced {
+        sum += &run.coords * run.coords.transpose();
+        count += run.coords.ncols();
+    }
+    sum / count.max(1) as f64
+}
+
+/// Steps the filter needs to settle from its start at the mean pressures (zero modes) before
+/// its innovation gate is armed (`estimator_core::coeffs::PressureModel::settle_steps`).
+///
+/// Started at zero while the flow's state is `e0`, the steady-state filter's error after `n`
+/// updates is `M^n e0` with `M = (I - K C) A`, and the next innovation carries `C A M^n e0`
+/// besides its noise (Anderson & Moore, Optimal Filtering, ch. 4). The gate is armed at the
+/// first `n` where a start three standard deviations of the state from the mean, in any
+/// direction (`e0 = 3 L z`, `|z| <= 1`, `L L^T` the state's covariance over the training
+/// samples), adds at most one steady-state innovation standard deviation to any tap: a good
+/// channel then fails a gate of five with the odds of a four-sigma excursion. It depends on
+/// the model only, not on any recording's start.
+///
+/// # Errors
+///
+/// [`PressureFitError::InvalidModel`] when the error does not decay that far within
+/// `u16::MAX` steps (an unstable `M`, which a DARE solution does not give).
+pub fn settle_steps(model: &PressureModelF64, state_cov: &DMatrix<f64>) -> Result<u16, PressureFitError> {
+    let rank = model.rank();
+    if rank == 0 || state_cov.shape() != (rank, rank) {
+        return Ok(0);
+    }
+    let eigen = state_cov.clone().symmetric_eigen();
+    let sqrt_values = eigen.eigenvalues.map(|value| value.max(0.0).sqrt());
+    let spread = &eigen.eigenvectors * DMatrix::from_diagonal(&sqrt_values) * 3.0;
+    let closed_loop = (DMatrix::identity(rank, rank) - &model.gain * &model.c) * &model.a;
+    let innovation_of_error = &model.c * &model.a;
+    // `M^n L`, advanced one step at a time.
+    let mut error = spread;
+    for steps in 0..=u16::MAX {
+        let innovation = &innovation_of_error * &error;
+        let within = (0..N_TAPS).all(|tap| innovation.row(tap).norm() <= model.innovation_std[tap]);
+        if within {
+            return Ok(steps);
+        }
+        error = &closed_loop * error;
+    }
+    Err(PressureFitError::InvalidModel("the pressure filter does not settle from its start within u16::MAX steps"))
 }
 
 /// The model before the filter is tuned: `A`, `B`, `C` and `cp_mean` fitted, no gain, no map.
@@ -600,6 +661,7 @@ fn untuned_model(pod: &Pod, dynamics: &Dynamics, config: &PressureFitConfig) -> 
         innovation_std: [1.0; N_TAPS],
         gate_sigma: config.gate_sigma,
         isolate_after: config.isolate_after,
+        settle_steps: 0,
         cl_map: ClSchedule::constant([0.0; N_TAPS], 0.0),
     }
 }
@@ -1219,6 +1281,8 @@ pub struct PressureFilterF64 {
     /// Consecutive rejections (or, for an isolated channel, consecutive passes) per channel.
     streak: [u16; N_TAPS],
     isolated: u16,
+    /// Steps left before the gate is armed.
+    settling: u16,
 }
 
 /// Result of one f64 filter step.
@@ -1238,7 +1302,7 @@ impl PressureFilterF64 {
     /// At the mean pressures (zero modes), no channel isolated.
     #[must_use]
     pub fn new(model: &PressureModelF64) -> Self {
-        Self { modes: DVector::zeros(model.rank()), streak: [0; N_TAPS], isolated: 0 }
+        Self { modes: DVector::zeros(model.rank()), streak: [0; N_TAPS], isolated: 0, settling: model.settle_steps }
     }
 
     /// The reduced state.
@@ -1248,7 +1312,8 @@ impl PressureFilterF64 {
     }
 
     /// Predicts `a_pred = A a + B u`, forms the innovations `Cp - (C a_pred + cp_mean)` of the
-    /// finite taps, gates them at `gate_sigma * innovation_std` (all pass when none does),
+    /// finite taps, gates them at `gate_sigma * innovation_std` (all pass while the filter
+    /// settles, and when none does),
     /// updates streaks and isolation, applies `a = a_pred + K nu` with the used channels, resets
     /// a state beyond the core's limit, and maps the state to `C_l,p` with the map at
     /// `alpha_deg` (`estimator_core::pressure::PressureFilter::step`).
@@ -1270,8 +1335,12 @@ impl PressureFilterF64 {
                 pass_mask |= 1 << tap;
             }
         }
-        // As in the core: when every measured channel fails at once, the prediction is off.
-        if pass_mask == 0 {
+        // As in the core: while the filter settles, and when every measured channel fails at
+        // once, the prediction is off.
+        if self.settling != 0 {
+            self.settling -= 1;
+            pass_mask = finite_mask;
+        } else if pass_mask == 0 {
             pass_mask = finite_mask;
         }
         let used_mask = self.track_faults(model, finite_mask, pass_mask);
@@ -1559,6 +1628,35 @@ mod tests {
         assert!(core.c.iter().all(|row| row[3..].iter().all(|&v| v == 0.0)));
         set.pressure = core;
         estimator_core::blob::validate(&set).unwrap();
+    }
+
+    /// One mode that halves each step, seen by every tap, no correction: a start three
+    /// standard deviations away adds `3 * 0.5^(n+1)` to the next innovation, within the
+    /// innovation standard deviation of 0.1 first at n = 4 (0.094; n = 3 gives 0.19).
+    #[test]
+    fn settle_steps_follow_the_error_decay_to_one_innovation_std() {
+        let model = PressureModelF64 {
+            a: DMatrix::from_element(1, 1, 0.5),
+            b: DMatrix::zeros(1, N_PRESSURE_INPUTS),
+            c: DMatrix::from_element(N_TAPS, 1, 1.0),
+            cp_mean: [0.0; N_TAPS],
+            gain: DMatrix::zeros(1, N_TAPS),
+            innovation_std: [0.1; N_TAPS],
+            gate_sigma: 5.0,
+            isolate_after: 20,
+            settle_steps: 0,
+            cl_map: ClSchedule::constant([0.0; N_TAPS], 0.0),
+        };
+        let unit = DMatrix::from_element(1, 1, 1.0);
+        assert_eq!(settle_steps(&model, &unit), Ok(4));
+        // A state that never strays from the mean needs no settling; one that never decays fails.
+        assert_eq!(settle_steps(&model, &DMatrix::zeros(1, 1)), Ok(0));
+        let stuck = PressureModelF64 { a: DMatrix::from_element(1, 1, 1.0), ..model.clone() };
+        assert!(matches!(settle_steps(&stuck, &unit), Err(PressureFitError::InvalidModel(_))));
+        // The fit on the synthetic runs settles within its warm-up and arms the gate.
+        let fitted = &fixture().fit;
+        assert!(fitted.report.settle_steps > 0 && usize::from(fitted.report.settle_steps) < 200);
+        assert_eq!(fitted.model.settle_steps, fitted.report.settle_steps);
     }
 
     #[test]

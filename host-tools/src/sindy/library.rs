@@ -317,6 +317,8 @@ fn push_combinations(n_vars: usize, degree: u8, start: usize, powers: &mut [u8; 
 
 #[cfg(test)]
 mod tests {
+    use estimator_core::sparse::Factor;
+
     use super::*;
 
     fn plant_library() -> Library {
@@ -349,10 +351,10 @@ mod tests {
         assert!(matches!(other.monomial(&[("a", 2), ("a", 2)], &[]), Err(SindyError::InvalidTerm { .. })));
         let foreign = Monomial::from_powers(&[0, 1, 0, 0, 0, 0], 0).unwrap();
         assert!(matches!(other.push(foreign), Err(SindyError::InvalidTerm { .. })));
-        let unordered = Monomial { factors: [0, 0, estimator_core::sparse::ONE_FACTOR], gate_mask: 0 };
+        let unordered = Monomial { factors: [Factor::Var0, Factor::Var0, Factor::One], gate_mask: 0 };
         assert!(other.push(unordered).is_ok());
         let mut two = Library::new(&["a", "b"]).unwrap();
-        let unordered = Monomial { factors: [1, 0, estimator_core::sparse::ONE_FACTOR], gate_mask: 0 };
+        let unordered = Monomial { factors: [Factor::Var1, Factor::Var0, Factor::One], gate_mask: 0 };
         assert!(matches!(two.push(unordered), Err(SindyError::InvalidTerm { .. })));
     }
 
