@@ -371,11 +371,6 @@ pub fn hil(
             other => bail!("sample {seq}: expected its estimate, got {other:?}"),
         }
     }
-    if let Ok(path) = std::env::var("HIL_DUMP_TICKS") {
-        let text: String =
-            firmware.iter().map(|e| format!("{} {} {:?}\n", e.seq, e.ticks_estimator, e.health)).collect();
-        std::fs::write(path, text)?;
-    }
     port.send(&ToFirmware::Stop)?;
     let report = match port.receive()? {
         FromFirmware::Report(report) => report,
