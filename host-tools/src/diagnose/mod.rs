@@ -639,12 +639,14 @@ impl SensorAttribution {
     }
 
     /// Whether a fault of one channel stands out from the other channels (any other finding
-    /// passes). The strongest fault finding on another channel measures what a channel shows
-    /// without a fault of its own here: a deviation common to the taps (a dynamic-pressure
-    /// fluctuation scales every Cp), or the pressure model's own error from recording to
-    /// recording. The contract's fault is of one channel, so the named one must lead that by at
-    /// least as much again, and by the naming threshold; a deviation several taps share alike is
-    /// not one channel's fault.
+    /// passes). The strongest finding on channels without this one measures what a channel
+    /// shows without a fault of its own here: a deviation common to the taps (a
+    /// dynamic-pressure fluctuation scales every Cp), the pressure model's own error from
+    /// recording to recording, or the footprint of other channels' effect (the filter's modes
+    /// follow lagged channels, and a healthy channel's innovation then shows their error). The
+    /// contract's fault is of one channel, so the named one must lead that by at least as much
+    /// again, and by the naming threshold; a deviation several taps share alike is not one
+    /// channel's fault.
     fn stands_out(finding: &SensorFinding, findings: &[SensorFinding], floor: &Signature) -> bool {
         if finding.effect != firmware_sim::effect::Effect::PressureFault {
             return true;
@@ -652,7 +654,7 @@ impl SensorAttribution {
         let runner_up = findings
             .iter()
             .filter(|other| {
-                other.effect == firmware_sim::effect::Effect::PressureFault && other.channels != finding.channels
+                !other.channels.is_empty() && other.channels.iter().all(|channel| !finding.channels.contains(channel))
             })
             .map(|other| Self::excess_of(other, floor).max(0.0))
             .fold(0.0, f64::max);

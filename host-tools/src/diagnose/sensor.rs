@@ -94,6 +94,18 @@ pub fn strength(finding: &SensorFinding) -> f64 {
 
 use faults::segments_of;
 
+/// Segments of one channel's [`RunStreams::innovation_alone`].
+fn segments_alone(runs: &[RunStreams], tap: usize) -> Vec<Segment<'_>> {
+    runs.iter()
+        .map(|run| Segment {
+            residual: &run.innovation_alone[tap],
+            training: run.training.clone(),
+            select: run.select,
+            heldout: run.heldout.clone(),
+        })
+        .collect()
+}
+
 /// What the sensor families search, for the report: `(effect, forms searched)`.
 #[must_use]
 pub fn family_summaries(sample_hz: f64) -> Vec<(Effect, String)> {
@@ -125,11 +137,12 @@ fn lag_grid(sample_hz: f64) -> Vec<f64> {
     super::candidates::log_grid(2.0 / sample_hz, 0.5, 28)
 }
 
-/// The lag column of one channel: `LP_tau[expected] - expected`, with `expected` the filter's
-/// one-step expectation of the channel (measured minus innovation): a lagged sensor reads the
-/// expected pressure through its lag (gap-diagnosis.md section 2.6, the first-order form).
+/// The lag column of one channel: `LP_tau[expected] - expected`, with `expected` what the
+/// filter run without the channel expects of it (measured minus [`RunStreams::innovation_alone`]):
+/// a lagged sensor reads the expected pressure through its lag (gap-diagnosis.md section 2.6,
+/// the first-order form).
 fn lag_column(run: &RunStreams, tap: usize, tau_s: f64) -> Vec<f64> {
-    let expected: Vec<f64> = run.cp[tap].iter().zip(&run.innovation[tap]).map(|(cp, nu)| cp - nu).collect();
+    let expected: Vec<f64> = run.cp[tap].iter().zip(&run.innovation_alone[tap]).map(|(cp, nu)| cp - nu).collect();
     let held =
         crate::fit::signals::hold_missing(&expected, expected.iter().copied().find(|v| v.is_finite()).unwrap_or(0.0));
     let lagged = super::candidates::first_order_lag(&held, tau_s, 1.0 / run.sample_hz);
@@ -137,10 +150,13 @@ fn lag_column(run: &RunStreams, tap: usize, tau_s: f64) -> Vec<f64> {
 }
 
 /// The lag of some channels on the innovations: each channel's time constant profiled; the
-/// channels whose lag stands out from the typical channel's are named together. With the other
-/// channels unlagged, the filter's modes follow them and a lagged channel's innovation shows its
-/// lag; a lag common to most channels is the alignment's ([`super::pressure_lag`]), which the
-/// innovations cannot see.
+/// channels whose lag stands out from the typical channel's are named together. Each channel is
+/// judged on what the filter run without it expects of it ([`RunStreams::innovation_alone`]):
+/// with the other channels unlagged, that expectation is the unlagged pressure and the
+/// channel's whole lag shows, where its own innovation hides most of it (the filter's modes
+/// follow the lagged readings: of three lagged channels, the innovations singled out one). A
+/// lag common to most channels is the alignment's ([`super::pressure_lag`]): the others then
+/// expect a lagged pressure too.
 fn lag_findings(runs: &[RunStreams], n_taps: usize) -> Vec<SensorFinding> {
     let Some(sample_hz) = runs.first().map(|run| run.sample_hz) else {
         return Vec::new();
@@ -152,7 +168,7 @@ fn lag_findings(runs: &[RunStreams], n_taps: usize) -> Vec<SensorFinding> {
         .map(|&tau_s| {
             (0..n_taps)
                 .map(|tap| {
-                    let segments = segments_of(runs, tap);
+                    let segments = segments_alone(runs, tap);
                     let columns: Vec<Vec<Vec<f64>>> =
                         runs.iter().map(|run| vec![lag_column(run, tap, tau_s)]).collect();
                     regression::fit_through_origin(&segments, &columns)
@@ -163,7 +179,7 @@ fn lag_findings(runs: &[RunStreams], n_taps: usize) -> Vec<SensorFinding> {
     // Per channel, its best time constant and what it explains in noise variances.
     let best: Vec<Option<(usize, f64)>> = (0..n_taps)
         .map(|tap| {
-            let noise_var = regression::difference_noise_var(&segments_of(runs, tap), None).max(f64::MIN_POSITIVE);
+            let noise_var = regression::difference_noise_var(&segments_alone(runs, tap), None).max(f64::MIN_POSITIVE);
             per_tau
                 .iter()
                 .enumerate()
@@ -175,6 +191,11 @@ fn lag_findings(runs: &[RunStreams], n_taps: usize) -> Vec<SensorFinding> {
                         .map(|fit| (tau_idx, fit.explained_per_sample() / noise_var))
                 })
                 .max_by(|a, b| a.1.total_cmp(&b.1))
+                // A best fit at the grid's longest time constant estimates none: the deviation
+                // only grows slower than any lag searched (a slow change of the Cp's scale, a
+                // drift), which a lag of this channel does not explain. A lag has its optimum
+                // inside the grid, which reaches far beyond tubing.
+                .filter(|&(tau_idx, _)| tau_idx + 1 < grid.len())
         })
         .collect();
     // The channels that stand out: a lag of some channels leaves the others' innovations
@@ -195,7 +216,7 @@ fn lag_findings(runs: &[RunStreams], n_taps: usize) -> Vec<SensorFinding> {
     // One column per lagged channel at its own time constant, pooled.
     let (mut segments, mut columns) = (Vec::new(), Vec::new());
     for (slot, &(tap, tau_idx)) in lagged.iter().enumerate() {
-        segments.extend(segments_of(runs, tap));
+        segments.extend(segments_alone(runs, tap));
         columns.extend(runs.iter().map(|run| {
             let own = lag_column(run, tap, grid[tau_idx]);
             (0..lagged.len()).map(|s| if s == slot { own.clone() } else { vec![0.0; own.len()] }).collect::<Vec<_>>()
@@ -965,6 +986,21 @@ mod tests {
             let fitted = number(finding, &format!("tau_s_{name}"));
             assert!((grid[11]..=grid[13]).contains(&fitted), "{name}: {fitted}");
         }
+    }
+
+    /// A deviation that grows slower than any lag searched (cp05 reads the pressure plus a
+    /// fifth of what a 5 s lag would take off it, a slow change of its scale) has its best fit at
+    /// the grid's longest time constant: no lag of cp05 is named.
+    #[test]
+    fn a_deviation_slower_than_any_lag_searched_is_no_lag() {
+        let tau_s = 5.0;
+        let run = recording(12, move |tap, idx, noise| {
+            let t_s = idx as f64 / HZ;
+            let (unlagged, lagged) = (pressure(tap, t_s, 0.0), pressure(tap, t_s, tau_s));
+            unlagged + if tap == 4 { 0.2 * (lagged - unlagged) } else { 0.0 } + noise
+        });
+        let found = lag_findings(std::slice::from_ref(&run), TAPS);
+        assert!(found.iter().all(|finding| !qualifies(finding)), "{found:?}");
     }
 
     /// A lag common to every channel does not show in the innovations as one channel standing

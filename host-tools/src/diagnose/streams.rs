@@ -11,6 +11,8 @@
 
 use std::ops::Range;
 
+use rayon::prelude::*;
+
 use estimator_core::coeffs::{N_ALPHA, N_TAPS};
 use estimator_core::plant::Plant;
 use estimator_core::{CoefficientSet, Estimator, Input};
@@ -85,6 +87,10 @@ pub struct RunStreams {
     pub cp: Vec<Vec<f64>>,
     /// One-step innovation of each pressure channel (NaN where the channel is missing).
     pub innovation: Vec<Vec<f64>>,
+    /// One-step innovation of each pressure channel from the filter run without that channel
+    /// (NaN where it is missing): the filter's modes follow the channels that correct them, so
+    /// a lag or a drift of a channel shows whole only in what the other channels expect of it.
+    pub innovation_alone: Vec<Vec<f64>>,
     /// Smoothed time derivative of each measured pressure channel, 1/s.
     pub cp_dot: Vec<Vec<f64>>,
 }
@@ -208,7 +214,11 @@ fn build_run(run: &Run, set: &CoefficientSet, split: &Split) -> RunStreams {
         .map(|cmu| cmu.into_iter().map(|value| value.max(0.0)).collect::<Vec<f64>>());
 
     let cp: Vec<Vec<f64>> = run.channels.cp.iter().map(Clone::clone).collect();
-    let innovation = innovations(run, set, &phi_rad, &cmu, dt_s);
+    let innovation = innovations(run, set, &phi_rad, &cmu, dt_s, None);
+    let innovation_alone: Vec<Vec<f64>> = (0..N_TAPS)
+        .into_par_iter()
+        .map(|tap| innovations(run, set, &phi_rad, &cmu, dt_s, Some(tap)).swap_remove(tap))
+        .collect();
     let cp_dot = cp
         .iter()
         .map(|channel| {
@@ -244,6 +254,7 @@ fn build_run(run: &Run, set: &CoefficientSet, split: &Split) -> RunStreams {
         residual,
         cp,
         innovation,
+        innovation_alone,
         cp_dot,
     }
 }
@@ -269,12 +280,19 @@ const GATE_SIGMA: f64 = 6.0;
 /// The pressure filter's one-step innovations per channel, `cp - (C (A a + B u) + cp_mean)`:
 /// the fit's f64 filter ([`PressureFilterF64`], the core's pressure.rs in f64) with a wider
 /// gate and no isolation, so that every channel's innovation is reported and one bad channel
-/// does not drag the others.
-fn innovations(run: &Run, set: &CoefficientSet, phi_rad: &[f64], cmu: &[Vec<f64>; 2], dt_s: f64) -> Vec<Vec<f64>> {
+/// does not drag the others. With `left_out`, that channel is withheld from the filter (read as
+/// missing) and its innovation is what the other channels expect of it.
+fn innovations(
+    run: &Run,
+    set: &CoefficientSet,
+    phi_rad: &[f64],
+    cmu: &[Vec<f64>; 2],
+    dt_s: f64,
+    left_out: Option<usize>,
+) -> Vec<Vec<f64>> {
     let model = PressureModelF64 {
         gate_sigma: GATE_SIGMA,
         isolate_after: u16::MAX,
-        settle_steps: 0,
         ..PressureModelF64::from_core(
             &set.pressure,
             &set.alpha_schedule_deg[..usize::from(set.n_alpha).clamp(1, N_ALPHA)],
@@ -286,8 +304,12 @@ fn innovations(run: &Run, set: &CoefficientSet, phi_rad: &[f64], cmu: &[Vec<f64>
     for idx in 0..run.channels.len() {
         let inputs = [phi_rad[idx], phi_dot[idx], cmu[0][idx], cmu[1][idx], 1.0];
         let cp: [f64; N_TAPS] = std::array::from_fn(|tap| run.channels.cp[tap][idx]);
+        let mut filtered = cp;
+        if let Some(slot) = left_out.and_then(|tap| filtered.get_mut(tap)) {
+            *slot = f64::NAN;
+        }
         // Only the innovations are used: the map to C_l (and so alpha) does not matter here.
-        let step = filter.step(&model, &inputs, &cp, run.meta.alpha_deg);
+        let step = filter.step(&model, &inputs, &filtered, run.meta.alpha_deg);
         for (tap, channel) in out.iter_mut().enumerate() {
             channel.push(if cp[tap].is_finite() { cp[tap] - step.predicted_cp[tap] } else { f64::NAN });
         }
@@ -334,6 +356,7 @@ pub(crate) fn synthetic_run(sample_hz: f64, cp: Vec<Vec<f64>>, innovation: Vec<V
         residual: zeros.clone(),
         cp_dot: cp.iter().map(|_| zeros.clone()).collect(),
         cp,
+        innovation_alone: innovation.clone(),
         innovation,
     }
 }

@@ -24,6 +24,7 @@ use firmware_sim::tunnel::effects::{
     ActuatorDelay, ActuatorLag, BalanceResonance, BiasDrift, Coupling, CubicStiffness, Effects, FaultMode, GravityTare,
     InertialTare, PressureFault, PressureLag, QFluctuation, RollDamping, VortexLag,
 };
+use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -276,10 +277,23 @@ fn draw_effect(class: Option<Effect>, base: &Scenario, rng: &mut ChaCha8Rng) -> 
         }
         Effect::Coupling => effects.coupling = Some(Coupling { gain: 0.3 * sign(rng) }),
         Effect::PressureLag => {
-            let channels = if rng.random::<f64>() < 0.3 { vec![rng.random_range(1..=12usize)] } else { Vec::new() };
-            channel = match channels.as_slice() {
-                [one] => vec![format!("cp{one:02}")],
-                _ => (1..=12).map(|tap| format!("cp{tap:02}")).collect(),
+            // One channel, a group of two to six (one tube bundle, one scanner module), or all.
+            let form = rng.random::<f64>();
+            let channels = if form < 0.3 {
+                vec![rng.random_range(1..=12usize)]
+            } else if form < 0.6 {
+                let mut taps: Vec<usize> = (1..=12).collect();
+                taps.shuffle(rng);
+                let mut group = taps[..rng.random_range(2..=6usize)].to_vec();
+                group.sort_unstable();
+                group
+            } else {
+                Vec::new()
+            };
+            channel = if channels.is_empty() {
+                (1..=12).map(|tap| format!("cp{tap:02}")).collect()
+            } else {
+                channels.iter().map(|tap| format!("cp{tap:02}")).collect()
             };
             effects.pressure_lag = Some(PressureLag { tau_s: 0.02, channels });
         }
