@@ -162,6 +162,17 @@ fn recording_at_another_rate_is_refused_naming_the_run() {
     assert!(message.contains("runs/") && message.contains("500") && message.contains("1000"), "{message}");
 }
 
+/// `scenario` recorded without its provenance and diagnosed against the built-in model and its
+/// signature.
+fn diagnose_against_built_in(scenario: &Scenario) -> host_tools::diagnose::result::Diagnosis {
+    let mut dataset = scenario.simulate(&|| {}).expect("simulates");
+    dataset.extra.clear();
+    let set = estimator_core::coeffs::DEFAULT;
+    let config =
+        DiagnoseConfig { signature: Some(host_tools::diagnose::default_signature()), ..DiagnoseConfig::default() };
+    diagnose(&dataset, Some((&set, "built-in".into())), &config, &|_| {}).expect("diagnoses").0
+}
+
 /// The default campaign (seed 1, three angles of attack, 50 s runs) with every pressure channel
 /// lagged by 50 ms (tubing), diagnosed against the built-in model and its signature:
 /// `pressure_lag` is named with all twelve channels and a time constant within 20 %. The
@@ -171,12 +182,7 @@ fn lag_of_every_pressure_channel_is_named_with_all_channels_and_its_time_constan
     let tau_s = 0.05;
     let mut scenario = Scenario::default();
     scenario.effects.pressure_lag = Some(PressureLag { tau_s, channels: Vec::new() });
-    let mut dataset = scenario.simulate(&|| {}).expect("simulates");
-    dataset.extra.clear();
-    let set = estimator_core::coeffs::DEFAULT;
-    let config =
-        DiagnoseConfig { signature: Some(host_tools::diagnose::default_signature()), ..DiagnoseConfig::default() };
-    let diagnosis = diagnose(&dataset, Some((&set, "built-in".into())), &config, &|_| {}).expect("diagnoses").0;
+    let diagnosis = diagnose_against_built_in(&scenario);
     assert_eq!(diagnosis.verdict.as_str(), "effect");
     let top = &diagnosis.effects[0];
     assert_eq!(top.name, "pressure_lag", "{:?}", diagnosis.effects);
@@ -199,12 +205,7 @@ fn lag_of_three_pressure_channels_is_named_with_those_channels() {
     let tau_s = 0.04;
     let mut scenario = Scenario { seed: 5, duration_s: 30.0, ..Scenario::default() };
     scenario.effects.pressure_lag = Some(PressureLag { tau_s, channels: vec![2, 6, 10] });
-    let mut dataset = scenario.simulate(&|| {}).expect("simulates");
-    dataset.extra.clear();
-    let set = estimator_core::coeffs::DEFAULT;
-    let config =
-        DiagnoseConfig { signature: Some(host_tools::diagnose::default_signature()), ..DiagnoseConfig::default() };
-    let diagnosis = diagnose(&dataset, Some((&set, "built-in".into())), &config, &|_| {}).expect("diagnoses").0;
+    let diagnosis = diagnose_against_built_in(&scenario);
     assert_eq!(diagnosis.verdict.as_str(), "effect");
     let top = &diagnosis.effects[0];
     assert_eq!(top.name, "pressure_lag", "{:?}", diagnosis.effects);

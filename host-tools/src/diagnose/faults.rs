@@ -326,9 +326,14 @@ pub fn part_gap(
 /// Segments of one channel's innovation (for the fit of the fault's columns).
 #[must_use]
 pub fn segments_of(runs: &[RunStreams], tap: usize) -> Vec<Segment<'_>> {
+    segments_over(runs, |run| &run.innovation[tap])
+}
+
+/// Segments of one stream of every run (`stream(run)`), with each run's split.
+pub fn segments_over<'a>(runs: &'a [RunStreams], stream: impl Fn(&'a RunStreams) -> &'a [f64]) -> Vec<Segment<'a>> {
     runs.iter()
         .map(|run| Segment {
-            residual: &run.innovation[tap],
+            residual: stream(run),
             training: run.training.clone(),
             select: run.select,
             heldout: run.heldout.clone(),

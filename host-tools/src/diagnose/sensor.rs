@@ -96,14 +96,7 @@ use faults::segments_of;
 
 /// Segments of one channel's [`RunStreams::innovation_alone`].
 fn segments_alone(runs: &[RunStreams], tap: usize) -> Vec<Segment<'_>> {
-    runs.iter()
-        .map(|run| Segment {
-            residual: &run.innovation_alone[tap],
-            training: run.training.clone(),
-            select: run.select,
-            heldout: run.heldout.clone(),
-        })
-        .collect()
+    faults::segments_over(runs, |run| &run.innovation_alone[tap])
 }
 
 /// What the sensor families search, for the report: `(effect, forms searched)`.
