@@ -216,3 +216,26 @@ fn lag_of_three_pressure_channels_is_named_with_those_channels() {
     }
     assert!(top.shrink > 0.5, "{top:?}");
 }
+
+/// Five of the twelve channels lagged by 30 ms (tubes of one length): what the other channels
+/// expect of each carries much of the group's lag, so the group is judged again without
+/// itself. Named with exactly those channels (before: a bias fault of cp06, a healthy channel
+/// carrying the group's footprint), each time constant within half of the truth (the fit
+/// trades part of the lag that the filter's expectation still carries for a longer time
+/// constant at a smaller gain).
+#[test]
+fn lag_of_five_pressure_channels_is_named_with_all_five() {
+    let tau_s = 0.03;
+    let mut scenario = Scenario { seed: 6, duration_s: 30.0, ..Scenario::default() };
+    scenario.effects.pressure_lag = Some(PressureLag { tau_s, channels: vec![2, 4, 5, 8, 11] });
+    let diagnosis = diagnose_against_built_in(&scenario);
+    assert_eq!(diagnosis.verdict.as_str(), "effect");
+    let top = &diagnosis.effects[0];
+    assert_eq!(top.name, "pressure_lag", "{:?}", diagnosis.effects);
+    assert_eq!(diagnosis.where_.channels, ["cp02", "cp04", "cp05", "cp08", "cp11"].map(String::from).to_vec());
+    for channel in &diagnosis.where_.channels {
+        let fitted = top.params[&format!("tau_s_{channel}")].as_f64().unwrap();
+        assert!((fitted / tau_s - 1.0).abs() < 0.5, "{channel}: fitted {fitted} s vs {tau_s} s");
+    }
+    assert!(top.shrink > 0.2, "{top:?}");
+}

@@ -331,9 +331,15 @@ pub fn segments_of(runs: &[RunStreams], tap: usize) -> Vec<Segment<'_>> {
 
 /// Segments of one stream of every run (`stream(run)`), with each run's split.
 pub fn segments_over<'a>(runs: &'a [RunStreams], stream: impl Fn(&'a RunStreams) -> &'a [f64]) -> Vec<Segment<'a>> {
+    segments_with(runs, runs.iter().map(stream))
+}
+
+/// Segments of the given streams, one per run in order, with each run's split.
+pub fn segments_with<'a>(runs: &'a [RunStreams], streams: impl IntoIterator<Item = &'a [f64]>) -> Vec<Segment<'a>> {
     runs.iter()
-        .map(|run| Segment {
-            residual: stream(run),
+        .zip(streams)
+        .map(|(run, residual)| Segment {
+            residual,
             training: run.training.clone(),
             select: run.select,
             heldout: run.heldout.clone(),

@@ -361,6 +361,23 @@ pub fn finding(runs: &[RunStreams], reference_tau_s: f64) -> Option<SensorFindin
     })
 }
 
+/// Whether one time constant on every channel re-aligns the taps with the balance better than
+/// one on the channels `group` alone, the others at the sim's own alignment: a lag common to
+/// every channel against a lag of some. Each hypothesis has one time constant, fitted here; the
+/// innovations' own time constants per channel are not used (part of a group's lag hides in
+/// what the other channels expect). `false` when the taps cannot be aligned.
+#[must_use]
+pub fn common_beats_group(runs: &[RunStreams], group: &[usize], reference_tau_s: f64) -> bool {
+    let Some(alignment) = Alignment::new(runs, |run| run.fit_samples().collect()) else { return false };
+    let n_taps = alignment.taps().len();
+    let every = alignment.ssr(&vec![alignment.shared(); n_taps]);
+    let group_taus = |tau_s: f64| -> Vec<f64> {
+        alignment.taps().iter().map(|tap| if group.contains(tap) { tau_s } else { reference_tau_s }).collect()
+    };
+    let best = minimise(|tau_s| alignment.ssr(&group_taus(tau_s)), TAU_RANGE_S);
+    every < alignment.ssr(&group_taus(best))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

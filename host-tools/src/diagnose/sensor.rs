@@ -71,8 +71,24 @@ pub fn findings(runs: &[RunStreams], reference_tau_s: f64) -> Vec<SensorFinding>
     if n_taps == 0 {
         return out;
     }
-    out.extend(super::pressure_lag::finding(runs, reference_tau_s));
-    out.extend(lag_findings(runs, n_taps));
+    let mut alignment = super::pressure_lag::finding(runs, reference_tau_s);
+    let mut some = lag_findings(runs, n_taps);
+    // A lag of some channels shifts the alignment of all twelve too, and a lag of every channel
+    // can leave some standing out in the innovations: the balance, which reads the pressures
+    // without lag, tells the two apart.
+    // Only a lag the alignment finds at all (the least effect to name) can be common.
+    let min_ratio = super::MIN_EFFECT_TO_NOISE * super::MIN_EFFECT_TO_NOISE;
+    let common_lag = alignment.as_ref().filter(|finding| strength(finding) >= min_ratio);
+    if let (Some(_), Some(group)) = (common_lag, some.first().filter(|finding| finding.channels.len() < n_taps)) {
+        let taps: Vec<usize> = (0..n_taps).filter(|tap| group.channels.contains(&channel_name(*tap))).collect();
+        if super::pressure_lag::common_beats_group(runs, &taps, reference_tau_s) {
+            some.clear();
+        } else {
+            alignment = None;
+        }
+    }
+    out.extend(alignment);
+    out.extend(some);
     out.extend((0..n_taps).filter_map(|tap| fault_finding(runs, tap, n_taps)));
     out.sort_by(|a, b| strength(b).total_cmp(&strength(a)));
     out
@@ -94,9 +110,12 @@ pub fn strength(finding: &SensorFinding) -> f64 {
 
 use faults::segments_of;
 
-/// Segments of one channel's [`RunStreams::innovation_alone`].
-fn segments_alone(runs: &[RunStreams], tap: usize) -> Vec<Segment<'_>> {
-    faults::segments_over(runs, |run| &run.innovation_alone[tap])
+/// Per run, per channel: the innovation a channel's lag is judged on.
+type Judged<'a> = Vec<Vec<&'a [f64]>>;
+
+/// Segments of one channel's judged innovation in every run.
+fn segments_judged<'a>(runs: &'a [RunStreams], judged: &Judged<'a>, tap: usize) -> Vec<Segment<'a>> {
+    faults::segments_with(runs, judged.iter().map(|run| run[tap]))
 }
 
 /// What the sensor families search, for the report: `(effect, forms searched)`.
@@ -125,93 +144,109 @@ pub fn family_summaries(sample_hz: f64) -> Vec<(Effect, String)> {
     ]
 }
 
-/// Time constants of the lag candidate, s: a log grid from two samples to half a second.
+/// Time constants of the lag candidate, s: a log grid from two samples to two seconds (about
+/// five points an octave). A best fit at the longest is no lag, so the grid reaches far beyond
+/// a tube's tens of milliseconds (gap-diagnosis.md section 2.6) and a damped transducer's or a
+/// restricted line's hundreds.
 fn lag_grid(sample_hz: f64) -> Vec<f64> {
-    super::candidates::log_grid(2.0 / sample_hz, 0.5, 28)
+    super::candidates::log_grid(2.0 / sample_hz, 2.0, 35)
 }
 
 /// The lag column of one channel: `LP_tau[expected] - expected`, with `expected` what the
-/// filter run without the channel expects of it (measured minus [`RunStreams::innovation_alone`]):
-/// a lagged sensor reads the expected pressure through its lag (gap-diagnosis.md section 2.6,
+/// filter run without the channel expects of it (measured minus the judged innovation): a
+/// lagged sensor reads the expected pressure through its lag (gap-diagnosis.md section 2.6,
 /// the first-order form).
-fn lag_column(run: &RunStreams, tap: usize, tau_s: f64) -> Vec<f64> {
-    let expected: Vec<f64> = run.cp[tap].iter().zip(&run.innovation_alone[tap]).map(|(cp, nu)| cp - nu).collect();
+fn lag_column(run: &RunStreams, innovation: &[f64], tap: usize, tau_s: f64) -> Vec<f64> {
+    let expected: Vec<f64> = run.cp[tap].iter().zip(innovation).map(|(cp, nu)| cp - nu).collect();
     let held =
         crate::fit::signals::hold_missing(&expected, expected.iter().copied().find(|v| v.is_finite()).unwrap_or(0.0));
     let lagged = super::candidates::first_order_lag(&held, tau_s, 1.0 / run.sample_hz);
     lagged.iter().zip(&held).map(|(l, e)| l - e).collect()
 }
 
+/// Least gain of a channel's lag column: half the reading lagged.
+const MIN_LAG_GAIN: f64 = 0.5;
+
+/// Most refinements of the lagged group: each runs the filter once without the group and once
+/// more without the group and each channel outside it.
+const GROUP_REFINEMENTS: usize = 3;
+
+/// Fewest channels outside a lagged group: the filter without the group needs channels to
+/// expect anything, and a lag of nearly every channel is the alignment's.
+const MIN_REFERENCE_TAPS: usize = 3;
+
 /// The lag of some channels on the innovations: each channel's time constant profiled; the
-/// channels whose lag stands out from the typical channel's are named together. Each channel is
-/// judged on what the filter run without it expects of it ([`RunStreams::innovation_alone`]):
-/// with the other channels unlagged, that expectation is the unlagged pressure and the
-/// channel's whole lag shows, where its own innovation hides most of it (the filter's modes
-/// follow the lagged readings: of three lagged channels, the innovations singled out one). A
-/// lag common to most channels is the alignment's ([`super::pressure_lag`]): the others then
-/// expect a lagged pressure too.
+/// channels whose lag stands out from the typical channel's are named together.
+///
+/// Each channel is first judged on what the filter run without it expects of it
+/// ([`RunStreams::innovation_alone`]): with the other channels unlagged, that expectation is
+/// the unlagged pressure and the channel's whole lag shows, where its own innovation hides most
+/// of it (the filter's modes follow the lagged readings: of three lagged channels, the
+/// innovations singled out one). With several channels lagged, what the others expect still
+/// carries the rest of the group's lag: a healthy channel takes the group's footprint, and a
+/// member's lag is part hidden (fitted as a longer time constant with a smaller gain). So the
+/// group found is refined: each member is judged again on the filter without the whole group,
+/// each other channel on the filter without the group and itself, the typical channel is the
+/// median outside the group, until the group holds. A lag common to most channels is the
+/// alignment's ([`super::pressure_lag`]): the others then expect a lagged pressure too.
 fn lag_findings(runs: &[RunStreams], n_taps: usize) -> Vec<SensorFinding> {
     let Some(sample_hz) = runs.first().map(|run| run.sample_hz) else {
         return Vec::new();
     };
     let grid = lag_grid(sample_hz);
-    // Per channel and grid point: the fit.
-    let per_tau: Vec<Vec<Option<regression::Fit>>> = grid
-        .iter()
-        .map(|&tau_s| {
-            (0..n_taps)
-                .map(|tap| {
-                    let segments = segments_alone(runs, tap);
-                    let columns: Vec<Vec<Vec<f64>>> =
-                        runs.iter().map(|run| vec![lag_column(run, tap, tau_s)]).collect();
-                    regression::fit_through_origin(&segments, &columns)
-                })
-                .collect()
-        })
-        .collect();
-    // Per channel, its best time constant and what it explains in noise variances.
-    let best: Vec<Option<(usize, f64)>> = (0..n_taps)
-        .map(|tap| {
-            let noise_var = regression::difference_noise_var(&segments_alone(runs, tap), None).max(f64::MIN_POSITIVE);
-            per_tau
-                .iter()
-                .enumerate()
-                // A lag, not a lead: the reading follows the expectation late (positive gain).
-                .filter_map(|(tau_idx, fits)| {
-                    fits[tap]
-                        .as_ref()
-                        .filter(|fit| fit.beta.first().is_some_and(|gain| *gain > 0.0))
-                        .map(|fit| (tau_idx, fit.explained_per_sample() / noise_var))
-                })
-                .max_by(|a, b| a.1.total_cmp(&b.1))
-                // A best fit at the grid's longest time constant estimates none: the deviation
-                // only grows slower than any lag searched (a slow change of the Cp's scale, a
-                // drift), which a lag of this channel does not explain. A lag has its optimum
-                // inside the grid, which reaches far beyond tubing.
-                .filter(|&(tau_idx, _)| tau_idx + 1 < grid.len())
-        })
-        .collect();
-    // The channels that stand out: a lag of some channels leaves the others' innovations
-    // alone, while a common-mode change of every pressure (q fluctuation, a model error) shows
-    // in all of them alike and is no lag of these channels.
-    let mut strengths: Vec<f64> = best.iter().map(|b| b.map_or(0.0, |(_, v)| v)).collect();
-    strengths.sort_by(f64::total_cmp);
-    let typical = strengths[strengths.len() / 2];
-    let min_ratio = super::MIN_EFFECT_TO_NOISE * super::MIN_EFFECT_TO_NOISE;
-    let lagged: Vec<(usize, usize)> = best
-        .iter()
-        .enumerate()
-        .filter_map(|(tap, b)| b.filter(|(_, v)| *v >= min_ratio && *v >= STAND_OUT * typical).map(|(t, _)| (tap, t)))
-        .collect();
+    let alone: Judged<'_> =
+        runs.iter().map(|run| run.innovation_alone.iter().take(n_taps).map(Vec::as_slice).collect()).collect();
+    let mut lagged = standing_out(&best_lags(runs, &alone, &grid, n_taps), &vec![false; n_taps]);
+    let group_of = |lagged: &[(usize, usize)]| -> Vec<bool> {
+        (0..n_taps).map(|tap| lagged.iter().any(|(member, _)| *member == tap)).collect()
+    };
+    let refine = |group: Vec<bool>| {
+        let innovations = without_group(runs, &group);
+        let best = {
+            let judged: Judged<'_> = innovations.iter().map(|run| run.iter().map(Vec::as_slice).collect()).collect();
+            best_lags(runs, &judged, &grid, n_taps)
+        };
+        (group, innovations, best)
+    };
+    let too_many = |lagged: &[(usize, usize)]| lagged.len() + MIN_REFERENCE_TAPS > n_taps;
+    let mut refined = None;
+    for _ in 0..GROUP_REFINEMENTS {
+        if lagged.is_empty() || too_many(&lagged) {
+            break;
+        }
+        let (group, innovations, best) = refine(group_of(&lagged));
+        let next = standing_out(&best, &group);
+        let holds = group_of(&next) == group;
+        let grows_too_far = too_many(&next);
+        refined = Some((group, innovations, best));
+        if holds || grows_too_far {
+            break;
+        }
+        lagged = next;
+    }
+    if lagged.is_empty() {
+        return Vec::new();
+    }
+    // The group's time constants and innovations, judged without the whole group.
+    if !too_many(&lagged) && refined.as_ref().is_none_or(|(group, _, _)| *group != group_of(&lagged)) {
+        refined = Some(refine(group_of(&lagged)));
+    }
+    let judged: Judged<'_> = match &refined {
+        Some((_, innovations, best)) => {
+            lagged = lagged.iter().filter_map(|(tap, _)| best[*tap].map(|(tau_idx, _)| (*tap, tau_idx))).collect();
+            innovations.iter().map(|run| run.iter().map(Vec::as_slice).collect()).collect()
+        }
+        None => alone,
+    };
     if lagged.is_empty() {
         return Vec::new();
     }
     // One column per lagged channel at its own time constant, pooled.
     let (mut segments, mut columns) = (Vec::new(), Vec::new());
     for (slot, &(tap, tau_idx)) in lagged.iter().enumerate() {
-        segments.extend(segments_alone(runs, tap));
-        columns.extend(runs.iter().map(|run| {
-            let own = lag_column(run, tap, grid[tau_idx]);
+        segments.extend(segments_judged(runs, &judged, tap));
+        columns.extend(runs.iter().zip(&judged).map(|(run, innovations)| {
+            let own = lag_column(run, innovations[tap], tap, grid[tau_idx]);
             (0..lagged.len()).map(|s| if s == slot { own.clone() } else { vec![0.0; own.len()] }).collect::<Vec<_>>()
         }));
     }
@@ -221,6 +256,81 @@ fn lag_findings(runs: &[RunStreams], n_taps: usize) -> Vec<SensorFinding> {
     // The choice of the channels costs ln C(n, k).
     finding.delta_bic -= (1..=lagged.len()).map(|i| ((n_taps - lagged.len() + i) as f64 / i as f64).ln()).sum::<f64>();
     vec![finding]
+}
+
+/// Per channel, its best time constant on the grid (index) and what that lag explains in noise
+/// variances of the judged innovation; `None` without a lag inside the grid.
+fn best_lags(runs: &[RunStreams], judged: &Judged<'_>, grid: &[f64], n_taps: usize) -> Vec<Option<(usize, f64)>> {
+    use rayon::prelude::*;
+    (0..n_taps)
+        .into_par_iter()
+        .map(|tap| {
+            let segments = segments_judged(runs, judged, tap);
+            let noise_var = regression::difference_noise_var(&segments, None).max(f64::MIN_POSITIVE);
+            grid.iter()
+                .enumerate()
+                .filter_map(|(tau_idx, &tau_s)| {
+                    let columns: Vec<Vec<Vec<f64>>> =
+                        runs.iter().zip(judged).map(|(run, nu)| vec![lag_column(run, nu[tap], tap, tau_s)]).collect();
+                    regression::fit_through_origin(&segments, &columns)
+                        // A lag, not a lead, and of the reading as a whole: a lagged sensor reads
+                        // the pressure through its lag (gain one, less what errors in the
+                        // expectation take off it), while a small gain on a lag far slower than
+                        // the motion is a change of the channel's scale.
+                        .filter(|fit| fit.beta.first().is_some_and(|gain| *gain >= MIN_LAG_GAIN))
+                        .map(|fit| (tau_idx, fit.explained_per_sample() / noise_var))
+                })
+                .max_by(|a, b| a.1.total_cmp(&b.1))
+                // A best fit at the grid's longest time constant estimates none: the deviation
+                // only grows slower than any lag searched (a slow change of the Cp's scale, a
+                // drift), which a lag of this channel does not explain. A lag has its optimum
+                // inside the grid, which reaches far beyond tubing.
+                .filter(|&(tau_idx, _)| tau_idx + 1 < grid.len())
+        })
+        .collect()
+}
+
+/// The channels whose lag stands out, with their best time constants: at least the least
+/// effect to name and [`STAND_OUT`] times the typical channel's evidence, the median of the
+/// channels outside `group`. A lag of some channels leaves the others' innovations alone, while
+/// a common-mode change of every pressure (q fluctuation, a model error) shows in all of them
+/// alike and is no lag of these channels.
+fn standing_out(best: &[Option<(usize, f64)>], group: &[bool]) -> Vec<(usize, usize)> {
+    let strength = |b: &Option<(usize, f64)>| b.map_or(0.0, |(_, v)| v);
+    let mut reference: Vec<f64> =
+        best.iter().zip(group).filter(|(_, member)| !**member).map(|(b, _)| strength(b)).collect();
+    if reference.is_empty() {
+        return Vec::new();
+    }
+    reference.sort_by(f64::total_cmp);
+    let typical = reference[reference.len() / 2];
+    let min_ratio = super::MIN_EFFECT_TO_NOISE * super::MIN_EFFECT_TO_NOISE;
+    best.iter()
+        .enumerate()
+        .filter_map(|(tap, b)| b.filter(|(_, v)| *v >= min_ratio && *v >= STAND_OUT * typical).map(|(t, _)| (tap, t)))
+        .collect()
+}
+
+/// Per run and channel, the innovation of each channel of `group` from the filter without the
+/// group, and of each other channel from the filter without the group and itself.
+fn without_group(runs: &[RunStreams], group: &[bool]) -> Vec<Vec<Vec<f64>>> {
+    use rayon::prelude::*;
+    runs.par_iter()
+        .map(|run| {
+            let members = run.innovation_without(group);
+            (0..group.len())
+                .into_par_iter()
+                .map(|tap| {
+                    if group[tap] {
+                        members[tap].clone()
+                    } else {
+                        let left_out: Vec<bool> = group.iter().enumerate().map(|(t, m)| *m || t == tap).collect();
+                        run.innovation_without(&left_out).swap_remove(tap)
+                    }
+                })
+                .collect()
+        })
+        .collect()
 }
 
 fn lag_finding(
@@ -982,8 +1092,9 @@ mod tests {
     }
 
     /// A deviation that grows slower than any lag searched (cp05 reads the pressure plus a
-    /// fifth of what a 5 s lag would take off it, a slow change of its scale) has its best fit at
-    /// the grid's longest time constant: no lag of cp05 is named.
+    /// fifth of what a 5 s lag would take off it, a slow change of its scale): its best fit is at
+    /// the grid's longest time constant, or a lag far slower than the motion with a fifth of the
+    /// gain a lagged sensor has. No lag of cp05 is named.
     #[test]
     fn a_deviation_slower_than_any_lag_searched_is_no_lag() {
         let tau_s = 5.0;
@@ -994,6 +1105,26 @@ mod tests {
         });
         let found = lag_findings(std::slice::from_ref(&run), TAPS);
         assert!(found.iter().all(|finding| !qualifies(finding)), "{found:?}");
+    }
+
+    /// Six of twelve channels with lag evidence of 5 to 10 noise variances, the others 0.1 to
+    /// 0.6: against the median of all twelve (a lagged channel's), nothing stands out; against
+    /// the median outside the group, all six do, and a healthy channel does not. Fits at the
+    /// grid's end are no lag and count as no evidence.
+    #[test]
+    fn the_typical_channel_is_the_median_outside_the_group() {
+        let evidence = [5.0, 0.1, 6.0, 0.2, 7.0, 0.3, 8.0, 0.4, 9.0, 0.5, 10.0, 0.6];
+        let best: Vec<Option<(usize, f64)>> = evidence.iter().enumerate().map(|(tap, v)| Some((tap, *v))).collect();
+        assert!(standing_out(&best, &[false; 12]).is_empty());
+        let group: Vec<bool> = (0..12).map(|tap| tap % 2 == 0).collect();
+        let found: Vec<usize> = standing_out(&best, &group).iter().map(|(tap, _)| *tap).collect();
+        assert_eq!(found, vec![0, 2, 4, 6, 8, 10]);
+        let mut without_some = best.clone();
+        without_some[1] = None;
+        without_some[3] = None;
+        // The outside median falls to 0.4: four times it is 1.6, still below every member.
+        assert_eq!(standing_out(&without_some, &group).len(), 6);
+        assert!(standing_out(&best, &[true; 12]).is_empty(), "no channel outside: no reference");
     }
 
     /// A lag common to every channel does not show in the innovations as one channel standing

@@ -10,6 +10,7 @@
 //! leak into the others.
 
 use std::ops::Range;
+use std::sync::Arc;
 
 use rayon::prelude::*;
 
@@ -93,9 +94,46 @@ pub struct RunStreams {
     pub innovation_alone: Vec<Vec<f64>>,
     /// Smoothed time derivative of each measured pressure channel, 1/s.
     pub cp_dot: Vec<Vec<f64>>,
+    /// The diagnosis filter, to run again with other channels withheld
+    /// ([`RunStreams::innovation_without`]).
+    pub replay: PressureReplay,
+}
+
+/// How the diagnosis's pressure filter runs again on one recording with channels withheld.
+#[derive(Debug, Clone)]
+pub enum PressureReplay {
+    /// The filter's model and its inputs that [`RunStreams`] does not hold.
+    Filter {
+        /// The diagnosis filter's model (wide gate, no isolation).
+        model: Arc<PressureModelF64>,
+        /// The roll rate from the fit's rate filter, rad/s (the filter's input, not the
+        /// zero-phase kinematics).
+        phi_dot_rad_s: Vec<f64>,
+    },
+    /// The expectation is known whatever is withheld: the innovations are
+    /// [`RunStreams::innovation_alone`] (the diagnosis modules' synthetic runs).
+    #[cfg(test)]
+    Known,
 }
 
 impl RunStreams {
+    /// One-step innovation of each pressure channel from the filter run with the channels
+    /// marked in `left_out` withheld (read as missing): what the other channels expect of each
+    /// withheld one. A lag of a group of channels shows whole only without the whole group,
+    /// since the filter's modes follow every channel that corrects them.
+    #[must_use]
+    pub fn innovation_without(&self, left_out: &[bool]) -> Vec<Vec<f64>> {
+        match &self.replay {
+            PressureReplay::Filter { model, phi_dot_rad_s } => {
+                let inputs =
+                    FilterInputs { phi_rad: &self.phi_rad, phi_dot_rad_s, cmu: &self.cmu, alpha_deg: self.alpha_deg };
+                innovations(model, &inputs, &self.cp, left_out)
+            }
+            #[cfg(test)]
+            PressureReplay::Known => self.innovation_alone.clone(),
+        }
+    }
+
     /// The roll acceleration smoothed at `corner_hz`, one of [`MODE_DRIVE_CORNERS_HZ`] (`None`
     /// for another corner).
     #[must_use]
@@ -214,10 +252,28 @@ fn build_run(run: &Run, set: &CoefficientSet, split: &Split) -> RunStreams {
         .map(|cmu| cmu.into_iter().map(|value| value.max(0.0)).collect::<Vec<f64>>());
 
     let cp: Vec<Vec<f64>> = run.channels.cp.iter().map(Clone::clone).collect();
-    let innovation = innovations(run, set, &phi_rad, &cmu, dt_s, None);
+    let model = Arc::new(PressureModelF64 {
+        gate_sigma: GATE_SIGMA,
+        isolate_after: u16::MAX,
+        ..PressureModelF64::from_core(
+            &set.pressure,
+            &set.alpha_schedule_deg[..usize::from(set.n_alpha).clamp(1, N_ALPHA)],
+        )
+    });
+    let (filter_phi_dot_rad_s, _) = differentiate(&phi_rad, &set.rate_filter, dt_s);
+    let inputs = FilterInputs {
+        phi_rad: &phi_rad,
+        phi_dot_rad_s: &filter_phi_dot_rad_s,
+        cmu: &cmu,
+        alpha_deg: run.meta.alpha_deg,
+    };
+    let innovation = innovations(&model, &inputs, &cp, &[]);
     let innovation_alone: Vec<Vec<f64>> = (0..N_TAPS)
         .into_par_iter()
-        .map(|tap| innovations(run, set, &phi_rad, &cmu, dt_s, Some(tap)).swap_remove(tap))
+        .map(|tap| {
+            let left_out: Vec<bool> = (0..N_TAPS).map(|other| other == tap).collect();
+            innovations(&model, &inputs, &cp, &left_out).swap_remove(tap)
+        })
         .collect();
     let cp_dot = cp
         .iter()
@@ -256,6 +312,7 @@ fn build_run(run: &Run, set: &CoefficientSet, split: &Split) -> RunStreams {
         innovation,
         innovation_alone,
         cp_dot,
+        replay: PressureReplay::Filter { model, phi_dot_rad_s: filter_phi_dot_rad_s },
     }
 }
 
@@ -277,41 +334,39 @@ pub fn central_difference(values: &[f64], dt_s: f64) -> Vec<f64> {
 /// that only a gross fault (which would otherwise drag the shared modes) is kept out.
 const GATE_SIGMA: f64 = 6.0;
 
+/// The pressure filter's inputs besides the readings, per sample.
+struct FilterInputs<'a> {
+    phi_rad: &'a [f64],
+    phi_dot_rad_s: &'a [f64],
+    cmu: &'a [Vec<f64>; 2],
+    alpha_deg: f64,
+}
+
 /// The pressure filter's one-step innovations per channel, `cp - (C (A a + B u) + cp_mean)`:
 /// the fit's f64 filter ([`PressureFilterF64`], the core's pressure.rs in f64) with a wider
 /// gate and no isolation, so that every channel's innovation is reported and one bad channel
-/// does not drag the others. With `left_out`, that channel is withheld from the filter (read as
-/// missing) and its innovation is what the other channels expect of it.
+/// does not drag the others. The channels marked in `left_out` are withheld from the filter
+/// (read as missing) and their innovations are what the other channels expect of them.
 fn innovations(
-    run: &Run,
-    set: &CoefficientSet,
-    phi_rad: &[f64],
-    cmu: &[Vec<f64>; 2],
-    dt_s: f64,
-    left_out: Option<usize>,
+    model: &PressureModelF64,
+    inputs: &FilterInputs<'_>,
+    cp: &[Vec<f64>],
+    left_out: &[bool],
 ) -> Vec<Vec<f64>> {
-    let model = PressureModelF64 {
-        gate_sigma: GATE_SIGMA,
-        isolate_after: u16::MAX,
-        ..PressureModelF64::from_core(
-            &set.pressure,
-            &set.alpha_schedule_deg[..usize::from(set.n_alpha).clamp(1, N_ALPHA)],
-        )
-    };
-    let (phi_dot, _) = differentiate(phi_rad, &set.rate_filter, dt_s);
-    let mut filter = PressureFilterF64::new(&model);
-    let mut out: Vec<Vec<f64>> = (0..N_TAPS).map(|_| Vec::with_capacity(run.channels.len())).collect();
-    for idx in 0..run.channels.len() {
-        let inputs = [phi_rad[idx], phi_dot[idx], cmu[0][idx], cmu[1][idx], 1.0];
-        let cp: [f64; N_TAPS] = std::array::from_fn(|tap| run.channels.cp[tap][idx]);
-        let mut filtered = cp;
-        if let Some(slot) = left_out.and_then(|tap| filtered.get_mut(tap)) {
-            *slot = f64::NAN;
-        }
+    let n = inputs.phi_rad.len();
+    let mut filter = PressureFilterF64::new(model);
+    let mut out: Vec<Vec<f64>> = (0..N_TAPS).map(|_| Vec::with_capacity(n)).collect();
+    for idx in 0..n {
+        let drive = [inputs.phi_rad[idx], inputs.phi_dot_rad_s[idx], inputs.cmu[0][idx], inputs.cmu[1][idx], 1.0];
+        let measured: [f64; N_TAPS] = std::array::from_fn(|tap| cp.get(tap).map_or(f64::NAN, |channel| channel[idx]));
+        let filtered: [f64; N_TAPS] =
+            std::array::from_fn(
+                |tap| if left_out.get(tap).copied().unwrap_or(false) { f64::NAN } else { measured[tap] },
+            );
         // Only the innovations are used: the map to C_l (and so alpha) does not matter here.
-        let step = filter.step(&model, &inputs, &filtered, run.meta.alpha_deg);
+        let step = filter.step(model, &drive, &filtered, inputs.alpha_deg);
         for (tap, channel) in out.iter_mut().enumerate() {
-            channel.push(if cp[tap].is_finite() { cp[tap] - step.predicted_cp[tap] } else { f64::NAN });
+            channel.push(if measured[tap].is_finite() { measured[tap] - step.predicted_cp[tap] } else { f64::NAN });
         }
     }
     out
@@ -358,6 +413,7 @@ pub(crate) fn synthetic_run(sample_hz: f64, cp: Vec<Vec<f64>>, innovation: Vec<V
         cp,
         innovation_alone: innovation.clone(),
         innovation,
+        replay: PressureReplay::Known,
     }
 }
 
