@@ -223,6 +223,17 @@ impl Alignment {
             .collect()
     }
 
+    /// Effective samples of the balance's residual on the fitted samples with the taps de-lagged
+    /// by `taus_s`: their number over the residual's integrated autocorrelation time.
+    fn effective_samples(&self, runs: &[RunStreams], taus_s: &[f64]) -> f64 {
+        let residuals = self.residuals(runs, |run| run.fit_samples().collect(), taus_s);
+        let segments: Vec<Segment<'_>> = residuals
+            .iter()
+            .map(|r| Segment { residual: r, training: 0..r.len(), select: Interleave::default(), heldout: 0..0 })
+            .collect();
+        self.n() as f64 / regression::integrated_autocorrelation(&segments, 200)
+    }
+
     /// The one time constant for every channel that re-aligns the taps with the balance best
     /// (grid, then golden-section refinement).
     #[must_use]
@@ -287,12 +298,7 @@ pub fn finding(runs: &[RunStreams], reference_tau_s: f64) -> Option<SensorFindin
         return None;
     }
     let taus = vec![shared; n_taps];
-    let residuals = alignment.residuals(runs, |run| run.fit_samples().collect(), &taus);
-    let segments: Vec<Segment<'_>> = residuals
-        .iter()
-        .map(|r| Segment { residual: r, training: 0..r.len(), select: Interleave::default(), heldout: 0..0 })
-        .collect();
-    let n_eff = alignment.n() as f64 / regression::integrated_autocorrelation(&segments, 200);
+    let n_eff = alignment.effective_samples(runs, &taus);
     if n_eff < 2.0 || ssr_reference <= 0.0 {
         return None;
     }
@@ -361,21 +367,44 @@ pub fn finding(runs: &[RunStreams], reference_tau_s: f64) -> Option<SensorFindin
     })
 }
 
-/// Whether one time constant on every channel re-aligns the taps with the balance better than
-/// one on the channels `group` alone, the others at the sim's own alignment: a lag common to
-/// every channel against a lag of some. Each hypothesis has one time constant, fitted here; the
-/// innovations' own time constants per channel are not used (part of a group's lag hides in
-/// what the other channels expect). `false` when the taps cannot be aligned.
+/// Rounds of coordinate descent over the group's and the other channels' time constants.
+const COMMON_LAG_ROUNDS: usize = 3;
+
+/// Least lag of the other channels, as a share of the group's, for a lag common to every
+/// channel.
+const COMMON_LAG_SHARE: f64 = 0.5;
+
+/// Whether the lag found on the channels `group` is common to every channel: with the group
+/// de-lagged by one time constant, the other channels still need one beyond the sim's own
+/// alignment to align the taps with the balance, by the Bayesian information criterion (one
+/// parameter, effective samples from the residual's autocorrelation), and of at least half the
+/// group's. The innovations alone
+/// cannot tell: a lag of every channel leaves some standing out there, and a lag of some shifts
+/// the alignment of all twelve. The innovations' own time constants are not used (part of a
+/// group's lag hides in what the other channels expect). `false` when the taps cannot be
+/// aligned.
 #[must_use]
-pub fn common_beats_group(runs: &[RunStreams], group: &[usize], reference_tau_s: f64) -> bool {
+pub fn lag_is_common(runs: &[RunStreams], group: &[usize], reference_tau_s: f64) -> bool {
     let Some(alignment) = Alignment::new(runs, |run| run.fit_samples().collect()) else { return false };
-    let n_taps = alignment.taps().len();
-    let every = alignment.ssr(&vec![alignment.shared(); n_taps]);
-    let group_taus = |tau_s: f64| -> Vec<f64> {
-        alignment.taps().iter().map(|tap| if group.contains(tap) { tau_s } else { reference_tau_s }).collect()
+    let taus = |group_tau_s: f64, rest_tau_s: f64| -> Vec<f64> {
+        alignment.taps().iter().map(|tap| if group.contains(tap) { group_tau_s } else { rest_tau_s }).collect()
     };
-    let best = minimise(|tau_s| alignment.ssr(&group_taus(tau_s)), TAU_RANGE_S);
-    every < alignment.ssr(&group_taus(best))
+    let group_alone_s = minimise(|tau_s| alignment.ssr(&taus(tau_s, reference_tau_s)), TAU_RANGE_S);
+    // Both time constants by coordinate descent (the group's alone takes up part of the rest's).
+    let (mut group_tau_s, mut rest_tau_s) = (group_alone_s, reference_tau_s);
+    for _ in 0..COMMON_LAG_ROUNDS {
+        rest_tau_s = minimise(|tau_s| alignment.ssr(&taus(group_tau_s, tau_s)), TAU_RANGE_S);
+        group_tau_s = minimise(|tau_s| alignment.ssr(&taus(tau_s, rest_tau_s)), TAU_RANGE_S);
+    }
+    // A common lag has about one time constant (tubes differ in length, not in kind); a rest
+    // lagged by a small share of the group's is the correlated taps trading lags, not a lag.
+    if rest_tau_s - reference_tau_s < COMMON_LAG_SHARE * (group_tau_s - reference_tau_s) {
+        return false;
+    }
+    let both = taus(group_tau_s, rest_tau_s);
+    let n_eff = alignment.effective_samples(runs, &both);
+    let (group_only, with_rest) = (alignment.ssr(&taus(group_alone_s, reference_tau_s)), alignment.ssr(&both));
+    n_eff >= 2.0 && with_rest > 0.0 && n_eff * (group_only / with_rest).ln() > n_eff.ln()
 }
 
 #[cfg(test)]
