@@ -75,10 +75,9 @@ pub fn findings(runs: &[RunStreams], reference_tau_s: f64) -> Vec<SensorFinding>
     let mut some = lag_findings(runs, n_taps);
     // A lag of some channels shifts the alignment of all twelve too, and a lag of every channel
     // can leave some standing out in the innovations: the balance, which reads the pressures
-    // without lag, tells the two apart.
-    // Only a lag the alignment finds at all (the least effect to name) can be common.
-    let min_ratio = super::MIN_EFFECT_TO_NOISE * super::MIN_EFFECT_TO_NOISE;
-    let common_lag = alignment.as_ref().filter(|finding| strength(finding) >= min_ratio);
+    // without lag, tells the two apart. Only a lag the alignment finds at all (the least effect
+    // to name) can be common.
+    let common_lag = alignment.as_ref().filter(|finding| strength(finding) >= least_strength());
     if let (Some(_), Some(group)) = (common_lag, some.first().filter(|finding| finding.channels.len() < n_taps)) {
         let taps: Vec<usize> = (0..n_taps).filter(|tap| group.channels.contains(&channel_name(*tap))).collect();
         if super::pressure_lag::lag_is_common(runs, &taps, reference_tau_s) {
@@ -112,6 +111,17 @@ use faults::segments_of;
 
 /// Per run, per channel: the innovation a channel's lag is judged on.
 type Judged<'a> = Vec<Vec<&'a [f64]>>;
+
+/// Owned innovations per run and channel, borrowed as [`Judged`].
+fn judged(innovations: &[Vec<Vec<f64>>]) -> Judged<'_> {
+    innovations.iter().map(|run| run.iter().map(Vec::as_slice).collect()).collect()
+}
+
+/// The least strength of a finding to name, in noise variances: the least effect to name
+/// ([`super::MIN_EFFECT_TO_NOISE`] of the noise RMS), squared.
+fn least_strength() -> f64 {
+    super::MIN_EFFECT_TO_NOISE * super::MIN_EFFECT_TO_NOISE
+}
 
 /// Segments of one channel's judged innovation in every run.
 fn segments_judged<'a>(runs: &'a [RunStreams], judged: &Judged<'a>, tap: usize) -> Vec<Segment<'a>> {
@@ -200,10 +210,7 @@ fn lag_findings(runs: &[RunStreams], n_taps: usize) -> Vec<SensorFinding> {
     };
     let refine = |group: Vec<bool>| {
         let innovations = without_group(runs, &group);
-        let best = {
-            let judged: Judged<'_> = innovations.iter().map(|run| run.iter().map(Vec::as_slice).collect()).collect();
-            best_lags(runs, &judged, &grid, n_taps)
-        };
+        let best = { best_lags(runs, &judged(&innovations), &grid, n_taps) };
         (group, innovations, best)
     };
     let too_many = |lagged: &[(usize, usize)]| lagged.len() + MIN_REFERENCE_TAPS > n_taps;
@@ -232,7 +239,7 @@ fn lag_findings(runs: &[RunStreams], n_taps: usize) -> Vec<SensorFinding> {
     let judged: Judged<'_> = match &refined {
         Some((_, innovations, best)) => {
             lagged = lagged.iter().filter_map(|(tap, _)| best[*tap].map(|(tau_idx, _)| (*tap, tau_idx))).collect();
-            innovations.iter().map(|run| run.iter().map(Vec::as_slice).collect()).collect()
+            judged(innovations)
         }
         None => alone,
     };
@@ -302,7 +309,7 @@ fn standing_out(best: &[Option<(usize, f64)>], group: &[bool]) -> Vec<(usize, us
     }
     reference.sort_by(f64::total_cmp);
     let typical = reference[reference.len() / 2];
-    let min_ratio = super::MIN_EFFECT_TO_NOISE * super::MIN_EFFECT_TO_NOISE;
+    let min_ratio = least_strength();
     best.iter()
         .enumerate()
         .filter_map(|(tap, b)| b.filter(|(_, v)| *v >= min_ratio && *v >= STAND_OUT * typical).map(|(t, _)| (tap, t)))
