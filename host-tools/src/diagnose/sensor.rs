@@ -232,9 +232,6 @@ fn lag_findings(runs: &[RunStreams], n_taps: usize) -> Vec<SensorFinding> {
     if lagged.is_empty() {
         return Vec::new();
     }
-    if let Some((group, _, best)) = refined.as_ref().filter(|(group, _, _)| *group == group_of(&lagged)) {
-        lagged = with_quiet_members(best, group, &lagged);
-    }
     // The group's time constants and innovations, judged without the whole group.
     if !too_many(&lagged) && refined.as_ref().is_none_or(|(group, _, _)| *group != group_of(&lagged)) {
         refined = Some(refine(group_of(&lagged)));
@@ -304,49 +301,19 @@ fn best_lags(runs: &[RunStreams], judged: &Judged<'_>, grid: &[f64], n_taps: usi
 /// a common-mode change of every pressure (q fluctuation, a model error) shows in all of them
 /// alike and is no lag of these channels.
 fn standing_out(best: &[Option<(usize, f64)>], group: &[bool]) -> Vec<(usize, usize)> {
-    let Some(typical) = typical_strength(best, group) else { return Vec::new() };
+    let strength = |b: &Option<(usize, f64)>| b.map_or(0.0, |(_, v)| v);
+    let mut reference: Vec<f64> =
+        best.iter().zip(group).filter(|(_, member)| !**member).map(|(b, _)| strength(b)).collect();
+    if reference.is_empty() {
+        return Vec::new();
+    }
+    reference.sort_by(f64::total_cmp);
+    let typical = reference[reference.len() / 2];
     let min_ratio = least_strength();
     best.iter()
         .enumerate()
         .filter_map(|(tap, b)| b.filter(|(_, v)| *v >= min_ratio && *v >= STAND_OUT * typical).map(|(t, _)| (tap, t)))
         .collect()
-}
-
-/// The typical channel's lag evidence: the median of the channels outside `group` (`None`
-/// when every channel is in it).
-fn typical_strength(best: &[Option<(usize, f64)>], group: &[bool]) -> Option<f64> {
-    let mut reference: Vec<f64> =
-        best.iter().zip(group).filter(|(_, member)| !**member).map(|(b, _)| b.map_or(0.0, |(_, v)| v)).collect();
-    reference.sort_by(f64::total_cmp);
-    reference.get(reference.len() / 2).copied()
-}
-
-/// The group `lagged` with the channels that carry its lag where their pressure barely moves.
-///
-/// A tube of the group's bundle lags the same, but on a tap whose pressure hardly changes the
-/// lag explains less than the least effect to name. Once the group has established the lag,
-/// such a channel joins it on weaker evidence: its best time constant (judged on the filter
-/// without the group and itself) lies within one grid step of the group's, and its evidence
-/// stands out [`STAND_OUT`] times from the typical channel outside the group. A channel
-/// whose innovation holds model error only has its best fit anywhere on the grid, and no more
-/// than the typical channel's evidence.
-fn with_quiet_members(best: &[Option<(usize, f64)>], group: &[bool], lagged: &[(usize, usize)]) -> Vec<(usize, usize)> {
-    let (Some(shortest), Some(longest)) = (lagged.iter().map(|(_, t)| *t).min(), lagged.iter().map(|(_, t)| *t).max())
-    else {
-        return lagged.to_vec();
-    };
-    let Some(typical) = typical_strength(best, group) else { return lagged.to_vec() };
-    let mut joined = lagged.to_vec();
-    for (tap, b) in best.iter().enumerate() {
-        let Some((tau_idx, strength)) = *b else { continue };
-        let in_group = joined.iter().any(|(member, _)| *member == tap);
-        let same_lag = tau_idx + 1 >= shortest && tau_idx <= longest + 1;
-        if !in_group && same_lag && strength > 0.0 && strength >= STAND_OUT * typical {
-            joined.push((tap, tau_idx));
-        }
-    }
-    joined.sort_unstable();
-    joined
 }
 
 /// Per run and channel, the innovation of each channel of `group` from the filter without the
@@ -1162,24 +1129,6 @@ mod tests {
         // The outside median falls to 0.4: four times it is 1.6, still below every member.
         assert_eq!(standing_out(&without_some, &group).len(), 6);
         assert!(standing_out(&best, &[true; 12]).is_empty(), "no channel outside: no reference");
-    }
-
-    /// Four members at grid steps 20 and 21 and a typical channel of 0.008 noise variances
-    /// (the median of the eight outside): a channel with 0.05 at step 20 and one with 0.04 at
-    /// step 22 join the group below the least effect to name; one as strong at step 12 (another
-    /// lag) and the typical one, itself at step 20, do not.
-    #[test]
-    fn quiet_channels_with_the_groups_lag_join_it() {
-        let strength = [0.003, 0.6, 0.004, 0.0035, 3.0, 0.05, 0.0, 0.008, 0.05, 0.4, 0.04, 0.3];
-        let tau_idx = [0, 20, 2, 0, 20, 12, 0, 20, 20, 20, 22, 21];
-        let mut best: Vec<Option<(usize, f64)>> = tau_idx.iter().zip(strength).map(|(t, v)| Some((*t, v))).collect();
-        best[6] = None;
-        let members = [1, 4, 9, 11];
-        let group: Vec<bool> = (0..12).map(|tap| members.contains(&tap)).collect();
-        let lagged: Vec<(usize, usize)> = members.iter().map(|&tap| (tap, tau_idx[tap])).collect();
-        let joined: Vec<usize> = with_quiet_members(&best, &group, &lagged).iter().map(|(tap, _)| *tap).collect();
-        assert_eq!(joined, vec![1, 4, 8, 9, 10, 11]);
-        assert_eq!(with_quiet_members(&best, &[true; 12], &lagged), lagged, "no reference: the group stays");
     }
 
     /// A lag common to every channel does not show in the innovations as one channel standing
