@@ -67,6 +67,7 @@ pub mod plant;
 pub mod pressure;
 pub mod prior;
 pub mod rate;
+pub mod real;
 pub mod schedule;
 pub mod sparse;
 pub mod time;
@@ -75,20 +76,20 @@ pub mod trig;
 pub use coeffs::CoefficientSet;
 
 /// True when `value` is finite and `|value| <= limit` (false for NaN, unlike `!(|v| > limit)`).
-pub(crate) fn bounded(value: f32, limit: f32) -> bool {
+pub(crate) fn bounded<R: real::Real>(value: R, limit: R) -> bool {
     value.abs() <= limit
 }
 
 /// `a.max(b)` (IEEE maxNum: a NaN operand is ignored) as a comparison: the M4F has no VMAXNM,
 /// so `f32::max` is a library call there.
 #[inline]
-pub(crate) fn max_num(a: f32, b: f32) -> f32 {
+pub(crate) fn max_num<R: real::Real>(a: R, b: R) -> R {
     if a > b || b.is_nan() { a } else { b }
 }
 
 /// `a.min(b)` (IEEE minNum: a NaN operand is ignored) as a comparison, for the same reason.
 #[inline]
-pub(crate) fn min_num(a: f32, b: f32) -> f32 {
+pub(crate) fn min_num<R: real::Real>(a: R, b: R) -> R {
     if a < b || b.is_nan() { a } else { b }
 }
 pub use estimator::{Estimator, Input, Output};

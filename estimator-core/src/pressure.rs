@@ -22,11 +22,8 @@
 
 use crate::coeffs::{N_ALPHA, N_PRESSURE_INPUTS, N_TAPS, PRESSURE_RANK, PressureModel};
 use crate::health::Health;
+use crate::real::Real;
 use crate::schedule::SchedulePosition;
-
-/// `last_bits` before a channel's first finite reading: a NaN pattern, which no finite
-/// reading repeats.
-const NO_READING_BITS: u32 = 0x7fc0_0000;
 
 /// Every tap's bit.
 const ALL_TAPS: u16 = (1 << N_TAPS) - 1;
@@ -41,27 +38,28 @@ const STATE_LIMIT: f32 = 1.0e6;
 /// equal readings in a row of a live channel have a probability far below 1e-20.
 pub const STUCK_AFTER_STEPS: u8 = 20;
 
-/// The pressure filter's state.
+/// The pressure filter's state, in the scalar `R` (f32 on the target, f64 in the host's fit
+/// and diagnosis; [`crate::real`]).
 ///
 /// Loops run over the full [`PRESSURE_RANK`] (unused modes are zero rows and columns), so that
 /// they unroll and vectorise; `rank` only documents how many modes the fit used.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PressureFilter {
-    modes: [f32; PRESSURE_RANK],
+pub struct PressureFilter<R: Real = f32> {
+    modes: [R; PRESSURE_RANK],
     /// `w^T C` at each breakpoint of the alpha schedule: the roll-moment map applied to the
     /// modes directly, so the step does not rebuild the 12 filtered pressures.
-    mode_weights: [[f32; PRESSURE_RANK]; N_ALPHA],
+    mode_weights: [[R; PRESSURE_RANK]; N_ALPHA],
     /// `w . cp_mean + w0` at each breakpoint.
-    cl_constant: [f32; N_ALPHA],
+    cl_constant: [R; N_ALPHA],
     /// `gate_sigma * innovation_std`: the largest accepted innovation of each tap.
-    gate_limit: [f32; N_TAPS],
+    gate_limit: [R; N_TAPS],
     /// Consecutive rejections (or, for an isolated channel, consecutive passes) per channel.
     streak: [u16; N_TAPS],
     /// Channels whose streak is not zero.
     streaking: u16,
     isolated: u16,
     /// Bit pattern of each channel's last finite reading.
-    last_bits: [u32; N_TAPS],
+    last_bits: [R::Bits; N_TAPS],
     /// Consecutive readings of each channel equal to the one before (saturating): a channel
     /// is stuck at `STUCK_AFTER_STEPS - 1` repeats, its `STUCK_AFTER_STEPS`-th equal reading.
     repeats: [u8; N_TAPS],
@@ -73,20 +71,22 @@ pub struct PressureFilter {
 
 /// Result of one pressure step.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PressureEstimate {
+pub struct PressureEstimate<R = f32> {
     /// `C_l,roll,p` from the filtered pressures.
-    pub cl: f32,
+    pub cl: R,
     /// True when at least one channel corrected the prediction this step.
     pub measured: bool,
 }
 
-impl PressureFilter {
-    /// At the mean pressures, no channel isolated, for the given model.
-    #[must_use]
-    pub const fn new(model: &PressureModel) -> Self {
-        let mut mode_weights = [[0.0; PRESSURE_RANK]; N_ALPHA];
+/// The filter at the mean pressures, no channel isolated, for `$model`, in the scalar `$r`:
+/// one body for the f32 `const` constructor and the generic one.
+macro_rules! filter_at_start {
+    ($r:ty, $model:expr) => {{
+        let model = $model;
+        let zero = <$r as Real>::ZERO;
+        let mut mode_weights = [[zero; PRESSURE_RANK]; N_ALPHA];
         let mut cl_constant = model.cl_offset;
-        let mut gate_limit = [0.0; N_TAPS];
+        let mut gate_limit = [zero; N_TAPS];
         let mut tap = 0;
         while tap < N_TAPS {
             let mut breakpoint = 0;
@@ -103,19 +103,37 @@ impl PressureFilter {
             gate_limit[tap] = model.gate_sigma * model.innovation_std[tap];
             tap += 1;
         }
-        Self {
-            modes: [0.0; PRESSURE_RANK],
+        PressureFilter {
+            modes: [zero; PRESSURE_RANK],
             mode_weights,
             cl_constant,
             gate_limit,
             streak: [0; N_TAPS],
             streaking: 0,
             isolated: 0,
-            last_bits: [NO_READING_BITS; N_TAPS],
+            last_bits: [<$r as Real>::NO_READING_BITS; N_TAPS],
             repeats: [0; N_TAPS],
             repeating: 0,
             settling: model.settle_steps,
         }
+    }};
+}
+
+impl PressureFilter {
+    /// At the mean pressures, no channel isolated, for the given model (`const`, so the
+    /// estimator can live in a `static`).
+    #[must_use]
+    pub const fn new(model: &PressureModel) -> Self {
+        filter_at_start!(f32, model)
+    }
+}
+
+impl<R: Real> PressureFilter<R> {
+    /// At the mean pressures, no channel isolated, for the given model: [`PressureFilter::new`]
+    /// in any scalar.
+    #[must_use]
+    pub fn at_start(model: &PressureModel<R>) -> Self {
+        filter_at_start!(R, model)
     }
 
     /// True when the constants derived from the model (the roll-moment map of the modes, its
@@ -131,8 +149,14 @@ impl PressureFilter {
 
     /// The reduced state.
     #[must_use]
-    pub const fn modes(&self) -> &[f32; PRESSURE_RANK] {
+    pub const fn modes(&self) -> &[R; PRESSURE_RANK] {
         &self.modes
+    }
+
+    /// The filtered pressures `C a + cp_mean` of the present state.
+    #[must_use]
+    pub fn filtered_cp(&self, model: &PressureModel<R>) -> [R; N_TAPS] {
+        output(&model.c, &model.cp_mean, &self.modes)
     }
 
     /// Predicts with the inputs `u`, corrects with the measured pressures `cp` and returns the
@@ -140,16 +164,34 @@ impl PressureFilter {
     /// `health` are set here.
     pub fn step(
         &mut self,
-        model: &PressureModel,
-        at: SchedulePosition,
-        inputs: &[f32; N_PRESSURE_INPUTS],
-        cp: &[f32; N_TAPS],
+        model: &PressureModel<R>,
+        at: SchedulePosition<R>,
+        inputs: &[R; N_PRESSURE_INPUTS],
+        cp: &[R; N_TAPS],
         health: &mut Health,
-    ) -> PressureEstimate {
+    ) -> PressureEstimate<R> {
+        self.step_observed(model, at, inputs, cp, health, |_| {})
+    }
+
+    /// [`PressureFilter::step`], showing `expected` the pressures the model predicts for this
+    /// step before any reading corrects them (`C (A a + B u) + cp_mean`; the innovation of a
+    /// reading is the reading minus this): the host's fit scores them, and its diagnosis reads
+    /// what the other channels expect of a withheld one.
+    #[inline(always)]
+    pub fn step_observed(
+        &mut self,
+        model: &PressureModel<R>,
+        at: SchedulePosition<R>,
+        inputs: &[R; N_PRESSURE_INPUTS],
+        cp: &[R; N_TAPS],
+        health: &mut Health,
+        mut expected: impl FnMut(&[R; N_TAPS]),
+    ) -> PressureEstimate<R> {
         let predicted = predict(&model.a, &model.b, &self.modes, inputs);
         // Branch-free over the taps: a missing reading gives a NaN or infinite innovation,
         // which fails the gate (a NaN compares false) and is zeroed below before it is used.
         let mut innovation = output(&model.c, &model.cp_mean, &predicted);
+        expected(&innovation);
         let mut pass_mask = 0u16;
         for (tap, ((value, &measured), &limit)) in innovation.iter_mut().zip(cp).zip(&self.gate_limit).enumerate() {
             let nu = measured - *value;
@@ -159,7 +201,7 @@ impl PressureFilter {
         // A passing channel has a finite innovation, hence a finite reading: only the channels
         // that failed need a look of their own (one or two in a fault or at start-up).
         let finite_mask = set_bits(!pass_mask & ALL_TAPS).fold(ALL_TAPS, |mask, tap| {
-            let finite = cp.get(tap).is_some_and(|value| value.is_finite());
+            let finite = cp.get(tap).is_some_and(|value| Real::is_finite(*value));
             if finite { mask } else { mask & !(1 << tap) }
         });
         pass_mask &= finite_mask;
@@ -179,14 +221,15 @@ impl PressureFilter {
         let used_mask = self.track_faults(model, finite_mask, pass_mask, health);
         for tap in set_bits(!used_mask & ALL_TAPS) {
             if let Some(value) = innovation.get_mut(tap) {
-                *value = 0.0;
+                *value = R::ZERO;
             }
         }
         let measured = used_mask != 0;
         self.modes = correct(&model.gain, &predicted, &innovation);
-        let within_limit = dot(&self.modes, &self.modes) <= STATE_LIMIT * STATE_LIMIT;
+        let limit = R::from_f32(STATE_LIMIT);
+        let within_limit = dot(&self.modes, &self.modes) <= limit * limit;
         if !within_limit {
-            self.modes = [0.0; PRESSURE_RANK];
+            self.modes = [R::ZERO; PRESSURE_RANK];
             health.set(Health::STATE_RESET);
         }
         health.cp_isolated = self.isolated;
@@ -195,13 +238,13 @@ impl PressureFilter {
             dot(&self.mode_weights[breakpoint], &self.modes) + self.cl_constant[breakpoint]
         };
         let lower = map_at(at.lower);
-        let cl = if at.weight == 0.0 { lower } else { lower + at.weight * (map_at(at.upper) - lower) };
+        let cl = if at.weight == R::ZERO { lower } else { lower + at.weight * (map_at(at.upper) - lower) };
         if !cl.is_finite() {
             // Only with tables whose products overflow (validation rejects them): never pass
             // on a non-finite estimate.
-            self.modes = [0.0; PRESSURE_RANK];
+            self.modes = [R::ZERO; PRESSURE_RANK];
             health.set(Health::STATE_RESET);
-            return PressureEstimate { cl: 0.0, measured: false };
+            return PressureEstimate { cl: R::ZERO, measured: false };
         }
         PressureEstimate { cl, measured }
     }
@@ -210,7 +253,7 @@ impl PressureFilter {
     /// ([`STUCK_AFTER_STEPS`] equal readings in a row). A missing reading (NaN, infinite; not
     /// in `finite_mask`) neither counts nor breaks the streak, so dropouts cannot hide a frozen
     /// channel.
-    fn stuck_mask(&mut self, cp: &[f32; N_TAPS], finite_mask: u16) -> u16 {
+    fn stuck_mask(&mut self, cp: &[R; N_TAPS], finite_mask: u16) -> u16 {
         // Zipped iterators, not indices: the optimiser then needs no bounds check (and the
         // step keeps its link-time proof of no panic path); selects rather than branches keep
         // the loop cheap on the M4F.
@@ -218,13 +261,13 @@ impl PressureFilter {
         let channels = cp.iter().zip(self.last_bits.iter_mut()).enumerate();
         if finite_mask == ALL_TAPS {
             for (tap, (value, last_bits)) in channels {
-                let bits = value.to_bits();
+                let bits = value.bits();
                 repeated |= u16::from(bits == *last_bits) << tap;
                 *last_bits = bits;
             }
         } else {
             for (tap, (value, last_bits)) in channels {
-                let bits = value.to_bits();
+                let bits = value.bits();
                 repeated |= u16::from(bits == *last_bits) << tap;
                 *last_bits = if finite_mask & (1 << tap) != 0 { bits } else { *last_bits };
             }
@@ -247,7 +290,7 @@ impl PressureFilter {
 
     /// Updates each measured channel's streak and isolation from whether it passed the gate,
     /// flags rejections, and returns the channels that correct the prediction this step.
-    fn track_faults(&mut self, model: &PressureModel, finite_mask: u16, pass_mask: u16, health: &mut Health) -> u16 {
+    fn track_faults(&mut self, model: &PressureModel<R>, finite_mask: u16, pass_mask: u16, health: &mut Health) -> u16 {
         // The usual step: every measured channel passes and none is isolated or has a streak
         // running, so every streak stays zero and nothing changes.
         if pass_mask == finite_mask && self.isolated == 0 && self.streaking & finite_mask == 0 {
@@ -304,36 +347,36 @@ fn set_bits(mut mask: u16) -> impl Iterator<Item = usize> {
 
 /// `A a + B u`.
 #[inline(never)]
-fn predict(
-    a: &[[f32; PRESSURE_RANK]; PRESSURE_RANK],
-    b: &[[f32; N_PRESSURE_INPUTS]; PRESSURE_RANK],
-    modes: &[f32; PRESSURE_RANK],
-    inputs: &[f32; N_PRESSURE_INPUTS],
-) -> [f32; PRESSURE_RANK] {
+fn predict<R: Real>(
+    a: &[[R; PRESSURE_RANK]; PRESSURE_RANK],
+    b: &[[R; N_PRESSURE_INPUTS]; PRESSURE_RANK],
+    modes: &[R; PRESSURE_RANK],
+    inputs: &[R; N_PRESSURE_INPUTS],
+) -> [R; PRESSURE_RANK] {
     core::array::from_fn(|row| dot(&a[row], modes) + dot(&b[row], inputs))
 }
 
 /// `C a + cp_mean`: the pressures the model expects.
 #[inline(never)]
-fn output(c: &[[f32; PRESSURE_RANK]; N_TAPS], cp_mean: &[f32; N_TAPS], modes: &[f32; PRESSURE_RANK]) -> [f32; N_TAPS] {
+fn output<R: Real>(c: &[[R; PRESSURE_RANK]; N_TAPS], cp_mean: &[R; N_TAPS], modes: &[R; PRESSURE_RANK]) -> [R; N_TAPS] {
     core::array::from_fn(|tap| dot(&c[tap], modes) + cp_mean[tap])
 }
 
 /// `a + K nu`: the corrected state.
 #[inline(never)]
-fn correct(
-    gain: &[[f32; N_TAPS]; PRESSURE_RANK],
-    predicted: &[f32; PRESSURE_RANK],
-    innovation: &[f32; N_TAPS],
-) -> [f32; PRESSURE_RANK] {
+fn correct<R: Real>(
+    gain: &[[R; N_TAPS]; PRESSURE_RANK],
+    predicted: &[R; PRESSURE_RANK],
+    innovation: &[R; N_TAPS],
+) -> [R; PRESSURE_RANK] {
     core::array::from_fn(|mode| predicted[mode] + dot(&gain[mode], innovation))
 }
 
-/// Dot product, summed in order. It starts from `-0.0`, the identity of f32 addition
+/// Dot product, summed in order. It starts from `-0.0`, the identity of addition
 /// (`-0.0 + x == x` for every `x`, signed zeros included), so the first product is not added
 /// to a zero that would need its own instruction.
-fn dot<const N: usize>(a: &[f32; N], b: &[f32; N]) -> f32 {
-    a.iter().zip(b).fold(-0.0f32, |sum, (x, y)| sum + x * y)
+fn dot<R: Real, const N: usize>(a: &[R; N], b: &[R; N]) -> R {
+    a.iter().zip(b).fold(R::NEG_ZERO, |sum, (&x, &y)| sum + x * y)
 }
 
 #[cfg(test)]

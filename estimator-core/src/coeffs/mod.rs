@@ -11,6 +11,7 @@ mod generated;
 
 use serde::{Deserialize, Serialize};
 
+use crate::real::Real;
 use crate::sparse::SparseModel;
 
 pub use compiled::{BUILT_IN, CompiledDefault};
@@ -188,23 +189,23 @@ pub struct EgkParams {
 /// `Cp[k] = C a[k] + cp_mean + v`; update `a = a_pred + K (Cp - C a_pred - cp_mean)` channel by
 /// channel; `C_l,p = w . (C a + cp_mean) + w0`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct PressureModel {
+pub struct PressureModel<R = f32> {
     /// Number of used modes (at most [`PRESSURE_RANK`]).
     pub rank: u8,
     /// State matrix `A`, rows by columns.
-    pub a: [[f32; PRESSURE_RANK]; PRESSURE_RANK],
+    pub a: [[R; PRESSURE_RANK]; PRESSURE_RANK],
     /// Input matrix `B`.
-    pub b: [[f32; N_PRESSURE_INPUTS]; PRESSURE_RANK],
+    pub b: [[R; N_PRESSURE_INPUTS]; PRESSURE_RANK],
     /// Output matrix `C` (tap by mode): the newest pressure block of the time-shifted state.
-    pub c: [[f32; PRESSURE_RANK]; N_TAPS],
+    pub c: [[R; PRESSURE_RANK]; N_TAPS],
     /// Mean pressure coefficient of each tap.
-    pub cp_mean: [f32; N_TAPS],
+    pub cp_mean: [R; N_TAPS],
     /// Steady-state Kalman gain `K` (mode by tap), from the DARE solved on the host.
-    pub gain: [[f32; N_TAPS]; PRESSURE_RANK],
+    pub gain: [[R; N_TAPS]; PRESSURE_RANK],
     /// Standard deviation of each tap's innovation at steady state.
-    pub innovation_std: [f32; N_TAPS],
+    pub innovation_std: [R; N_TAPS],
     /// Innovation gate, in standard deviations: a larger innovation is rejected and flagged.
-    pub gate_sigma: f32,
+    pub gate_sigma: R,
     /// Consecutive rejections after which a channel is isolated as faulty.
     pub isolate_after: u16,
     /// Steps from the start during which every finite reading corrects the state, ungated:
@@ -217,9 +218,9 @@ pub struct PressureModel {
     /// (`crate::schedule`; interpolated between them). One map for all alphas errs twice as
     /// much: the vortex suction that the taps see changes its share of the roll moment with
     /// alpha.
-    pub cl_weights: [[f32; N_TAPS]; N_ALPHA],
+    pub cl_weights: [[R; N_TAPS]; N_ALPHA],
     /// Offset of that map at each breakpoint.
-    pub cl_offset: [f32; N_ALPHA],
+    pub cl_offset: [R; N_ALPHA],
 }
 
 /// The fusion filter (domain-models.md section 4, design B): the error of the eGK estimate is
@@ -316,5 +317,28 @@ impl Envelope {
     pub const fn with_margin(range: [f32; 2]) -> [f32; 2] {
         let margin = ENVELOPE_MARGIN * (range[1] - range[0]);
         [range[0] - margin, range[1] + margin]
+    }
+}
+
+impl<R: Real> PressureModel<R> {
+    /// The same table in another scalar: exact from f32 to f64, rounded to nearest the other
+    /// way (check the result with [`crate::blob::validate`] before flying it).
+    #[must_use]
+    pub fn cast<S: Real>(&self) -> PressureModel<S> {
+        let to = |value: R| S::from_f64(value.to_f64());
+        PressureModel {
+            rank: self.rank,
+            a: self.a.map(|row| row.map(to)),
+            b: self.b.map(|row| row.map(to)),
+            c: self.c.map(|row| row.map(to)),
+            cp_mean: self.cp_mean.map(to),
+            gain: self.gain.map(|row| row.map(to)),
+            innovation_std: self.innovation_std.map(to),
+            gate_sigma: to(self.gate_sigma),
+            isolate_after: self.isolate_after,
+            settle_steps: self.settle_steps,
+            cl_weights: self.cl_weights.map(|row| row.map(to)),
+            cl_offset: self.cl_offset.map(to),
+        }
     }
 }

@@ -14,16 +14,17 @@ use std::sync::Arc;
 
 use rayon::prelude::*;
 
-use estimator_core::coeffs::{N_ALPHA, N_TAPS};
+use estimator_core::coeffs::N_TAPS;
 use estimator_core::plant::Plant;
 use estimator_core::{CoefficientSet, Estimator, Input};
 use firmware_sim::dataset::{Dataset, Run, RunKind};
 
 use super::regression::Interleave;
-use crate::fit::pressure::{PressureFilterF64, PressureModelF64};
+use crate::fit::pressure::{PressureTable, filter_step};
 use crate::fit::signals::{differentiate, hold_missing, zero_phase_lowpass_extended};
 use crate::fit::split::Split;
 use crate::replay::input_at;
+use estimator_core::pressure::PressureFilter;
 
 /// Corner of the zero-phase smoother applied to the roll angle before it is differentiated for
 /// the candidate regressors, Hz: above the roll motion's content (holds with ramps of a few
@@ -105,7 +106,7 @@ pub enum PressureReplay {
     /// The filter's model and its inputs that [`RunStreams`] does not hold.
     Filter {
         /// The diagnosis filter's model (wide gate, no isolation).
-        model: Arc<PressureModelF64>,
+        model: Arc<PressureTable>,
         /// The roll rate from the fit's rate filter, rad/s (the filter's input, not the
         /// zero-phase kinematics).
         phi_dot_rad_s: Vec<f64>,
@@ -252,14 +253,10 @@ fn build_run(run: &Run, set: &CoefficientSet, split: &Split) -> RunStreams {
         .map(|cmu| cmu.into_iter().map(|value| value.max(0.0)).collect::<Vec<f64>>());
 
     let cp: Vec<Vec<f64>> = run.channels.cp.iter().map(Clone::clone).collect();
-    let model = Arc::new(PressureModelF64 {
-        gate_sigma: GATE_SIGMA,
-        isolate_after: u16::MAX,
-        ..PressureModelF64::from_core(
-            &set.pressure,
-            &set.alpha_schedule_deg[..usize::from(set.n_alpha).clamp(1, N_ALPHA)],
-        )
-    });
+    let mut table = PressureTable::from_set(set);
+    table.model.gate_sigma = GATE_SIGMA;
+    table.model.isolate_after = u16::MAX;
+    let model = Arc::new(table);
     let (filter_phi_dot_rad_s, _) = differentiate(&phi_rad, &set.rate_filter, dt_s);
     let inputs = FilterInputs {
         phi_rad: &phi_rad,
@@ -343,18 +340,12 @@ struct FilterInputs<'a> {
 }
 
 /// The pressure filter's one-step innovations per channel, `cp - (C (A a + B u) + cp_mean)`:
-/// the fit's f64 filter ([`PressureFilterF64`], the core's pressure.rs in f64) with a wider
-/// gate and no isolation, so that every channel's innovation is reported and one bad channel
+/// the core's filter in f64 ([`filter_step`]) with a wider gate and no isolation, so that every channel's innovation is reported and one bad channel
 /// does not drag the others. The channels marked in `left_out` are withheld from the filter
 /// (read as missing) and their innovations are what the other channels expect of them.
-fn innovations(
-    model: &PressureModelF64,
-    inputs: &FilterInputs<'_>,
-    cp: &[Vec<f64>],
-    left_out: &[bool],
-) -> Vec<Vec<f64>> {
+fn innovations(model: &PressureTable, inputs: &FilterInputs<'_>, cp: &[Vec<f64>], left_out: &[bool]) -> Vec<Vec<f64>> {
     let n = inputs.phi_rad.len();
-    let mut filter = PressureFilterF64::new(model);
+    let mut filter = PressureFilter::at_start(&model.model);
     let mut out: Vec<Vec<f64>> = (0..N_TAPS).map(|_| Vec::with_capacity(n)).collect();
     for idx in 0..n {
         let drive = [inputs.phi_rad[idx], inputs.phi_dot_rad_s[idx], inputs.cmu[0][idx], inputs.cmu[1][idx], 1.0];
@@ -364,7 +355,7 @@ fn innovations(
                 |tap| if left_out.get(tap).copied().unwrap_or(false) { f64::NAN } else { measured[tap] },
             );
         // Only the innovations are used: the map to C_l (and so alpha) does not matter here.
-        let step = filter.step(model, &drive, &filtered, inputs.alpha_deg);
+        let step = filter_step(&mut filter, model, &drive, &filtered, inputs.alpha_deg);
         for (tap, channel) in out.iter_mut().enumerate() {
             channel.push(if measured[tap].is_finite() { measured[tap] - step.predicted_cp[tap] } else { f64::NAN });
         }

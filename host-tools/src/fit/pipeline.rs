@@ -172,7 +172,7 @@ pub fn fit_dataset(dataset: &Dataset, config: &FitConfig, progress: Progress<'_>
 
     let clock = Instant::now();
     progress("fusion");
-    let fusion = fit_fusion_on(dataset, &signals, &roll, &set, &pressure.model_f64, config)?;
+    let fusion = fit_fusion_on(dataset, &signals, &roll, &set, &pressure.table, config)?;
     set.fusion = fusion.params();
     timing.push(("fusion".to_owned(), clock.elapsed().as_secs_f64()));
 
@@ -365,7 +365,7 @@ fn fit_fusion_on(
     signals: &[RunSignals],
     roll: &[usize],
     set: &CoefficientSet,
-    pressure: &super::pressure::PressureModelF64,
+    pressure: &super::pressure::PressureTable,
     config: &FitConfig,
 ) -> Result<FusionFit, FitError> {
     let mut outputs = Vec::new();

@@ -36,17 +36,16 @@
 
 use std::ops::Range;
 
-use estimator_core::coeffs::{N_ALPHA, N_PRESSURE_INPUTS, N_TAPS, PRESSURE_RANK, PressureModel};
+use estimator_core::coeffs::{CoefficientSet, N_ALPHA, N_PRESSURE_INPUTS, N_TAPS, PRESSURE_RANK, PressureModel};
+use estimator_core::health::Health;
+use estimator_core::pressure::PressureFilter;
+use estimator_core::schedule::{SchedulePosition, position_in};
 use firmware_sim::dataset::Channels;
 use nalgebra::{Cholesky, DMatrix, DVector, SVD, Schur};
 use rayon::prelude::*;
 
 use super::dare::{DareError, DareOptions, solve_filter_dare};
 use super::signals::RunSignals;
-
-/// Largest Euclidean norm of a reduced state before the core treats it as diverged and resets
-/// it (`estimator_core::pressure`, `STATE_LIMIT`).
-const STATE_LIMIT: f64 = 1.0e6;
 
 /// Iteration cap of the dense decompositions (SVD, Schur); they converge in far fewer.
 const DECOMPOSITION_ITERATIONS: usize = 10_000;
@@ -218,166 +217,57 @@ impl Default for PressureFitConfig {
     }
 }
 
-/// The fitted model in f64, with matrices of the used rank only.
+/// The pressure path in f64: the core's table ([`PressureModel<f64>`], run by the core's own
+/// filter in f64) and the alpha breakpoints of its map to `C_l` (the set's first `n_alpha`).
 #[derive(Debug, Clone, PartialEq)]
-pub struct PressureModelF64 {
-    /// State matrix `A` (`r x r`).
-    pub a: DMatrix<f64>,
-    /// Input matrix `B` (`r x 5`).
-    pub b: DMatrix<f64>,
-    /// Output matrix `C` (`12 x r`).
-    pub c: DMatrix<f64>,
-    /// Mean pressure of each tap.
-    pub cp_mean: [f64; N_TAPS],
-    /// Steady-state Kalman gain `K` (`r x 12`).
-    pub gain: DMatrix<f64>,
-    /// Steady-state innovation standard deviation of each tap.
-    pub innovation_std: [f64; N_TAPS],
-    /// Innovation gate, in standard deviations.
-    pub gate_sigma: f64,
-    /// Consecutive rejections after which a channel is isolated.
-    pub isolate_after: u16,
-    /// Steps from the start during which every finite reading is used, ungated
-    /// ([`settle_steps`]).
-    pub settle_steps: u16,
-    /// Map from filtered pressures to `C_l`, scheduled on alpha.
-    pub cl_map: ClSchedule,
-}
-
-/// The map from filtered pressures to `C_l` at each breakpoint of the alpha schedule,
-/// interpolated between them and held outside, as the core does
-/// (`estimator_core::schedule`).
-#[derive(Debug, Clone, PartialEq)]
-pub struct ClSchedule {
-    /// Breakpoints, deg, ascending (at least one).
+pub struct PressureTable {
+    /// The core's table in f64: entries past the rank are exactly zero.
+    pub model: PressureModel<f64>,
+    /// Breakpoints of the map to `C_l`, deg, ascending (at least one; at most [`N_ALPHA`]).
     pub breakpoints_deg: Vec<f64>,
-    /// Weights of the taps at each breakpoint.
-    pub weights: Vec<[f64; N_TAPS]>,
-    /// Offset at each breakpoint.
-    pub offsets: Vec<f64>,
 }
 
-impl ClSchedule {
-    /// One map for every alpha (breakpoint 0 deg).
+impl PressureTable {
+    /// A coefficient set's pressure path in f64 (exact).
     #[must_use]
-    pub fn constant(weights: [f64; N_TAPS], offset: f64) -> Self {
-        Self { breakpoints_deg: vec![0.0], weights: vec![weights], offsets: vec![offset] }
+    pub fn from_set(set: &CoefficientSet) -> Self {
+        let n = usize::from(set.n_alpha).clamp(1, N_ALPHA);
+        Self {
+            model: set.pressure.cast(),
+            breakpoints_deg: set.alpha_schedule_deg[..n].iter().map(|&deg| f64::from(deg)).collect(),
+        }
     }
 
-    /// `C_l` of the filtered pressures at `alpha_deg`: each neighbouring breakpoint's map, then
-    /// linear interpolation of the two values (the core's order).
-    #[must_use]
-    pub fn cl(&self, filtered_cp: &[f64; N_TAPS], alpha_deg: f64) -> f64 {
-        let map = |idx: usize| {
-            let idx = idx.min(self.weights.len().saturating_sub(1));
-            let (Some(weights), Some(offset)) = (self.weights.get(idx), self.offsets.get(idx)) else {
-                return f64::NAN;
-            };
-            weights.iter().zip(filtered_cp).map(|(w, cp)| w * cp).sum::<f64>() + offset
-        };
-        let (lower, upper, weight) = schedule_position(&self.breakpoints_deg, alpha_deg);
-        let low = map(lower);
-        if weight == 0.0 { low } else { low + weight * (map(upper) - low) }
-    }
-}
-
-/// The two breakpoints around `alpha_deg` and the upper one's weight
-/// (`estimator_core::schedule::position` in f64).
-fn schedule_position(breakpoints_deg: &[f64], alpha_deg: f64) -> (usize, usize, f64) {
-    let n = breakpoints_deg.len().max(1);
-    let upper = breakpoints_deg.iter().position(|&breakpoint| breakpoint > alpha_deg).unwrap_or(n);
-    if upper == 0 {
-        return (0, 0, 0.0);
-    }
-    if upper >= breakpoints_deg.len() {
-        return (n - 1, n - 1, 0.0);
-    }
-    let (low_deg, high_deg) = (breakpoints_deg[upper - 1], breakpoints_deg[upper]);
-    let span = high_deg - low_deg;
-    (upper - 1, upper, if span > 0.0 { (alpha_deg - low_deg) / span } else { 0.0 })
-}
-
-/// The breakpoint nearest to `alpha_deg` (the first of a tie).
-fn nearest_breakpoint(breakpoints_deg: &[f64], alpha_deg: f64) -> usize {
-    (0..breakpoints_deg.len())
-        .min_by(|&a, &b| (breakpoints_deg[a] - alpha_deg).abs().total_cmp(&(breakpoints_deg[b] - alpha_deg).abs()))
-        .unwrap_or(0)
-}
-
-impl PressureModelF64 {
     /// Number of modes `r`.
     #[must_use]
     pub fn rank(&self) -> usize {
-        self.a.nrows()
+        usize::from(self.model.rank).min(PRESSURE_RANK)
     }
 
-    /// The core's f32 table: entries past the rank are exactly zero, as the core's loops run
-    /// over the full [`PRESSURE_RANK`].
+    /// `A`, `C` and `K` at the model's rank, for the fit's matrix algebra.
+    fn matrices(&self) -> (DMatrix<f64>, DMatrix<f64>, DMatrix<f64>) {
+        let (rank, m) = (self.rank(), &self.model);
+        (
+            DMatrix::from_fn(rank, rank, |row, col| m.a[row][col]),
+            DMatrix::from_fn(N_TAPS, rank, |tap, mode| m.c[tap][mode]),
+            DMatrix::from_fn(rank, N_TAPS, |mode, tap| m.gain[mode][tap]),
+        )
+    }
+
+    /// Where `alpha_deg` lies in the map's schedule (`estimator_core::schedule`).
+    #[must_use]
+    pub fn position(&self, alpha_deg: f64) -> SchedulePosition<f64> {
+        position_in(&self.breakpoints_deg, alpha_deg)
+    }
+
+    /// The core's f32 table.
     ///
     /// # Errors
     ///
-    /// [`PressureFitError::InvalidModel`] when the rank exceeds [`PRESSURE_RANK`] or the matrices'
-    /// shapes disagree with it; [`PressureFitError::NonFinite`] when a value is not finite in f32.
+    /// [`PressureFitError::NonFinite`] when a value is not finite in f32.
     pub fn to_core(&self) -> Result<PressureModel, PressureFitError> {
-        let rank = self.rank();
-        let shapes_ok = rank <= PRESSURE_RANK
-            && self.b.shape() == (rank, N_PRESSURE_INPUTS)
-            && self.c.shape() == (N_TAPS, rank)
-            && self.gain.shape() == (rank, N_TAPS);
-        if !shapes_ok {
-            return Err(PressureFitError::InvalidModel("the rank exceeds PRESSURE_RANK or B, C, K do not match it"));
-        }
-        let at = |matrix: &DMatrix<f64>, row: usize, col: usize| {
-            if row < matrix.nrows() && col < matrix.ncols() { matrix[(row, col)] as f32 } else { 0.0 }
-        };
-        let model = PressureModel {
-            rank: u8::try_from(rank).map_err(|_| PressureFitError::InvalidModel("the rank does not fit in u8"))?,
-            a: std::array::from_fn(|row| std::array::from_fn(|col| at(&self.a, row, col))),
-            b: std::array::from_fn(|row| std::array::from_fn(|col| at(&self.b, row, col))),
-            c: std::array::from_fn(|tap| std::array::from_fn(|mode| at(&self.c, tap, mode))),
-            cp_mean: self.cp_mean.map(|value| value as f32),
-            gain: std::array::from_fn(|mode| std::array::from_fn(|tap| at(&self.gain, mode, tap))),
-            innovation_std: self.innovation_std.map(|value| value as f32),
-            gate_sigma: self.gate_sigma as f32,
-            isolate_after: self.isolate_after,
-            settle_steps: self.settle_steps,
-            cl_weights: std::array::from_fn(|idx| {
-                let last = self.cl_map.weights.len().saturating_sub(1);
-                self.cl_map.weights.get(idx.min(last)).map_or([0.0; N_TAPS], |weights| weights.map(|w| w as f32))
-            }),
-            cl_offset: std::array::from_fn(|idx| {
-                let last = self.cl_map.offsets.len().saturating_sub(1);
-                self.cl_map.offsets.get(idx.min(last)).map_or(0.0, |&offset| offset as f32)
-            }),
-        };
+        let model: PressureModel = self.model.cast();
         core_is_finite(&model).then_some(model).ok_or(PressureFitError::NonFinite("pressure model in f32"))
-    }
-
-    /// The core's table in f64 (its first `rank` modes), to run the host reference filter on a
-    /// fitted or loaded coefficient set whose alpha schedule is `breakpoints_deg` (the set's
-    /// first `n_alpha` breakpoints).
-    #[must_use]
-    pub fn from_core(model: &PressureModel, breakpoints_deg: &[f32]) -> Self {
-        let n = breakpoints_deg.len().clamp(1, N_ALPHA);
-        let rank = usize::from(model.rank).min(PRESSURE_RANK);
-        Self {
-            a: DMatrix::from_fn(rank, rank, |row, col| f64::from(model.a[row][col])),
-            b: DMatrix::from_fn(rank, N_PRESSURE_INPUTS, |row, col| f64::from(model.b[row][col])),
-            c: DMatrix::from_fn(N_TAPS, rank, |tap, mode| f64::from(model.c[tap][mode])),
-            cp_mean: model.cp_mean.map(f64::from),
-            gain: DMatrix::from_fn(rank, N_TAPS, |mode, tap| f64::from(model.gain[mode][tap])),
-            innovation_std: model.innovation_std.map(f64::from),
-            gate_sigma: f64::from(model.gate_sigma),
-            isolate_after: model.isolate_after,
-            settle_steps: model.settle_steps,
-            cl_map: ClSchedule {
-                breakpoints_deg: (0..n)
-                    .map(|idx| breakpoints_deg.get(idx).map_or(0.0, |&deg| f64::from(deg)))
-                    .collect(),
-                weights: model.cl_weights[..n].iter().map(|weights| weights.map(f64::from)).collect(),
-                offsets: model.cl_offset[..n].iter().map(|&offset| f64::from(offset)).collect(),
-            },
-        }
     }
 }
 
@@ -397,6 +287,13 @@ fn core_is_finite(model: &PressureModel) -> bool {
         .chain(&model.cl_offset)
         .chain(&scalars)
         .all(|value| value.is_finite())
+}
+
+/// The breakpoint nearest to `alpha_deg` (the first of a tie).
+fn nearest_breakpoint(breakpoints_deg: &[f64], alpha_deg: f64) -> usize {
+    (0..breakpoints_deg.len())
+        .min_by(|&a, &b| (breakpoints_deg[a] - alpha_deg).abs().total_cmp(&(breakpoints_deg[b] - alpha_deg).abs()))
+        .unwrap_or(0)
 }
 
 /// What the fit chose and how well it fits the training data.
@@ -443,13 +340,13 @@ pub struct PressureFitReport {
     pub settle_steps: u16,
 }
 
-/// A fitted pressure path: the core's table, the same model in f64, and the report.
+/// A fitted pressure path: the core's table, the same table in f64, and the report.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PressureFit {
     /// The table for `CoefficientSet::pressure`.
     pub model: PressureModel,
-    /// The model in f64 (for [`run_pressure_filter`]).
-    pub model_f64: PressureModelF64,
+    /// The table in f64 before rounding (for [`run_pressure_filter`]).
+    pub table: PressureTable,
     /// Choices and training scores.
     pub report: PressureFitReport,
 }
@@ -504,7 +401,7 @@ pub enum PressureFitError {
     /// No tap has data in at least half of the training samples.
     #[error("no pressure tap has data in at least half of the training samples")]
     NoPressureData,
-    /// An f64 model's shapes do not make a core table.
+    /// The fitted model does not make a core table.
     #[error("the pressure model cannot become a core table: {0}")]
     InvalidModel(&'static str),
 }
@@ -556,24 +453,30 @@ pub fn fit_pressure_model(
     for (variance, _) in noise_variance.iter_mut().zip(&dead).filter(|(_, is_dead)| **is_dead) {
         *variance = typical;
     }
-    let base = untuned_model(&pod, &dynamics, config);
+    let base = untuned_model(&pod, &dynamics, config, breakpoints_deg)?;
     let tuned = tune_filter(runs, base, &dynamics.residual_cov, &noise_variance, config)?;
-    let mut model_f64 = tuned.model;
+    let mut table = tuned.table;
     // The eigen-solver leaves round-off where a dead tap's row of `C` is zero in exact
     // arithmetic; make it exact, and its gain column with it.
     for tap in (0..N_TAPS).filter(|&tap| dead[tap]) {
-        model_f64.c.row_mut(tap).fill(0.0);
-        model_f64.gain.column_mut(tap).fill(0.0);
+        table.model.c[tap] = [0.0; PRESSURE_RANK];
+        for row in &mut table.model.gain {
+            row[tap] = 0.0;
+        }
     }
-    let mut map = fit_cl_map(runs, &model_f64, config, breakpoints_deg)?;
-    for weights in &mut map.schedule.weights {
+    let mut map = fit_cl_map(runs, &table, config)?;
+    for weights in &mut map.weights {
         for (weight, _) in weights.iter_mut().zip(&dead).filter(|(_, is_dead)| **is_dead) {
             *weight = 0.0;
         }
     }
-    model_f64.cl_map = map.schedule;
-    model_f64.settle_steps = settle_steps(&model_f64, &state_covariance(&reduced))?;
-    let model = model_f64.to_core()?;
+    // Slots past the schedule's breakpoints repeat the last map (the core never reads them).
+    let last = map.weights.len().saturating_sub(1);
+    table.model.cl_weights =
+        std::array::from_fn(|idx| map.weights.get(idx.min(last)).copied().unwrap_or([0.0; N_TAPS]));
+    table.model.cl_offset = std::array::from_fn(|idx| map.offsets.get(idx.min(last)).copied().unwrap_or(0.0));
+    table.model.settle_steps = settle_steps(&table, &state_covariance(&reduced))?;
+    let model = table.to_core()?;
     let report = PressureFitReport {
         rank: pod.rank,
         data_rank: pod.data_rank,
@@ -593,9 +496,9 @@ pub fn fit_pressure_model(
         n_dynamics_samples: dynamics.n_samples,
         n_cl_samples: map.n_samples,
         dead_taps: (0..N_TAPS).filter(|&tap| dead[tap]).map(|tap| tap + 1).collect(),
-        settle_steps: model_f64.settle_steps,
+        settle_steps: table.model.settle_steps,
     };
-    Ok(PressureFit { model, model_f64, report })
+    Ok(PressureFit { model, table, report })
 }
 
 /// Covariance of the reduced state over the training samples (the POD coordinates are centred,
@@ -627,21 +530,22 @@ fn state_covariance(reduced: &[ReducedRun]) -> DMatrix<f64> {
 ///
 /// [`PressureFitError::InvalidModel`] when the error does not decay that far within
 /// `u16::MAX` steps (an unstable `M`, which a DARE solution does not give).
-pub fn settle_steps(model: &PressureModelF64, state_cov: &DMatrix<f64>) -> Result<u16, PressureFitError> {
-    let rank = model.rank();
+pub fn settle_steps(table: &PressureTable, state_cov: &DMatrix<f64>) -> Result<u16, PressureFitError> {
+    let rank = table.rank();
     if rank == 0 || state_cov.shape() != (rank, rank) {
         return Ok(0);
     }
     let eigen = state_cov.clone().symmetric_eigen();
     let sqrt_values = eigen.eigenvalues.map(|value| value.max(0.0).sqrt());
     let spread = &eigen.eigenvectors * DMatrix::from_diagonal(&sqrt_values) * 3.0;
-    let closed_loop = (DMatrix::identity(rank, rank) - &model.gain * &model.c) * &model.a;
-    let innovation_of_error = &model.c * &model.a;
+    let (a, c, gain) = table.matrices();
+    let closed_loop = (DMatrix::identity(rank, rank) - &gain * &c) * &a;
+    let innovation_of_error = &c * &a;
     // `M^n L`, advanced one step at a time.
     let mut error = spread;
     for steps in 0..=u16::MAX {
         let innovation = &innovation_of_error * &error;
-        let within = (0..N_TAPS).all(|tap| innovation.row(tap).norm() <= model.innovation_std[tap]);
+        let within = (0..N_TAPS).all(|tap| innovation.row(tap).norm() <= table.model.innovation_std[tap]);
         if within {
             return Ok(steps);
         }
@@ -650,20 +554,42 @@ pub fn settle_steps(model: &PressureModelF64, state_cov: &DMatrix<f64>) -> Resul
     Err(PressureFitError::InvalidModel("the pressure filter does not settle from its start within u16::MAX steps"))
 }
 
-/// The model before the filter is tuned: `A`, `B`, `C` and `cp_mean` fitted, no gain, no map.
-fn untuned_model(pod: &Pod, dynamics: &Dynamics, config: &PressureFitConfig) -> PressureModelF64 {
-    PressureModelF64 {
-        a: dynamics.a.clone(),
-        b: dynamics.b.clone(),
-        c: pod.basis.rows(0, N_TAPS).into_owned(),
+/// The model before the filter is tuned: `A`, `B`, `C` and `cp_mean` fitted, no gain, no map,
+/// scheduled on `breakpoints_deg` (none is one map at 0 deg; at most [`N_ALPHA`] are kept).
+fn untuned_model(
+    pod: &Pod,
+    dynamics: &Dynamics,
+    config: &PressureFitConfig,
+    breakpoints_deg: &[f64],
+) -> Result<PressureTable, PressureFitError> {
+    let rank = pod.rank;
+    if rank > PRESSURE_RANK || dynamics.a.shape() != (rank, rank) || dynamics.b.shape() != (rank, N_PRESSURE_INPUTS) {
+        return Err(PressureFitError::InvalidModel("the rank exceeds PRESSURE_RANK or A, B do not match it"));
+    }
+    let padded = |matrix: &DMatrix<f64>, row: usize, col: usize| {
+        if row < matrix.nrows() && col < matrix.ncols() { matrix[(row, col)] } else { 0.0 }
+    };
+    let c = pod.basis.rows(0, N_TAPS).into_owned();
+    let model = PressureModel {
+        rank: u8::try_from(rank).map_err(|_| PressureFitError::InvalidModel("the rank does not fit in u8"))?,
+        a: std::array::from_fn(|row| std::array::from_fn(|col| padded(&dynamics.a, row, col))),
+        b: std::array::from_fn(|row| std::array::from_fn(|col| padded(&dynamics.b, row, col))),
+        c: std::array::from_fn(|tap| std::array::from_fn(|mode| padded(&c, tap, mode))),
         cp_mean: std::array::from_fn(|tap| pod.mean[tap]),
-        gain: DMatrix::zeros(pod.rank, N_TAPS),
+        gain: [[0.0; N_TAPS]; PRESSURE_RANK],
         innovation_std: [1.0; N_TAPS],
         gate_sigma: config.gate_sigma,
         isolate_after: config.isolate_after,
         settle_steps: 0,
-        cl_map: ClSchedule::constant([0.0; N_TAPS], 0.0),
-    }
+        cl_weights: [[0.0; N_TAPS]; N_ALPHA],
+        cl_offset: [0.0; N_ALPHA],
+    };
+    let breakpoints_deg = if breakpoints_deg.is_empty() {
+        vec![0.0]
+    } else {
+        breakpoints_deg[..breakpoints_deg.len().min(N_ALPHA)].to_vec()
+    };
+    Ok(PressureTable { model, breakpoints_deg })
 }
 
 /// Checks the settings' ranges.
@@ -997,7 +923,7 @@ fn median(values: &mut [f64]) -> f64 {
 /// The filter tuned on the training data (steps 6-7).
 #[derive(Debug, Clone)]
 struct TunedFilter {
-    model: PressureModelF64,
+    table: PressureTable,
     q_scale: f64,
     dare_iterations: usize,
     dare_residual: f64,
@@ -1008,23 +934,26 @@ struct TunedFilter {
 /// one with the smallest `R`-weighted mean squared innovation.
 fn tune_filter(
     runs: &[PressureRun<'_>],
-    base: PressureModelF64,
+    base: PressureTable,
     residual_cov: &DMatrix<f64>,
     noise_variance: &[f64; N_TAPS],
     config: &PressureFitConfig,
 ) -> Result<TunedFilter, PressureFitError> {
     let r = DMatrix::from_diagonal(&DVector::from_row_slice(noise_variance));
+    let (a, c, _) = base.matrices();
     let candidates: Result<Vec<TunedFilter>, PressureFitError> = config
         .q_scales
         .par_iter()
         .map(|&q_scale| {
-            let solution = solve_filter_dare(&base.a, &base.c, &(residual_cov * q_scale), &r, &config.dare)?;
-            let mut model = base.clone();
-            model.gain = solution.gain;
-            model.innovation_std = std::array::from_fn(|tap| solution.innovation_cov[(tap, tap)].max(0.0).sqrt());
-            let scores = score_cp(runs, &model, noise_variance, config.warmup_samples);
+            let solution = solve_filter_dare(&a, &c, &(residual_cov * q_scale), &r, &config.dare)?;
+            let mut table = base.clone();
+            for (mode, row) in table.model.gain.iter_mut().enumerate().take(solution.gain.nrows()) {
+                *row = std::array::from_fn(|tap| solution.gain[(mode, tap)]);
+            }
+            table.model.innovation_std = std::array::from_fn(|tap| solution.innovation_cov[(tap, tap)].max(0.0).sqrt());
+            let scores = score_cp(runs, &table, noise_variance, config.warmup_samples);
             let (dare_iterations, dare_residual) = (solution.iterations, solution.relative_residual);
-            Ok(TunedFilter { model, q_scale, dare_iterations, dare_residual, scores })
+            Ok(TunedFilter { table, q_scale, dare_iterations, dare_residual, scores })
         })
         .collect();
     candidates?
@@ -1073,17 +1002,17 @@ impl CpScores {
 /// Runs the filter over every run and sums the pressure errors after the warm-up.
 fn score_cp(
     runs: &[PressureRun<'_>],
-    model: &PressureModelF64,
+    table: &PressureTable,
     noise_variance: &[f64; N_TAPS],
     warmup: usize,
 ) -> CpScores {
     let mut total = CpScores::default();
     for run in runs {
-        let mut filter = PressureFilterF64::new(model);
+        let mut filter = PressureFilter::at_start(&table.model);
         let mut inputs = HeldInputs::default();
         for k in 0..run.len() {
             let cp = run.cp_at(k);
-            let step = filter.step(model, &inputs.hold(run.inputs(k)), &cp, run.alpha_deg[k]);
+            let step = filter_step(&mut filter, table, &inputs.hold(run.inputs(k)), &cp, run.alpha_deg[k]);
             if k < warmup {
                 continue;
             }
@@ -1105,7 +1034,10 @@ fn score_cp(
 /// The map `C_l,p = w . Cp_filtered + w0` and its training fit.
 #[derive(Debug, Clone)]
 struct ClMap {
-    schedule: ClSchedule,
+    /// Weights of the taps at each breakpoint.
+    weights: Vec<[f64; N_TAPS]>,
+    /// Offset at each breakpoint.
+    offsets: Vec<f64>,
     rms: f64,
     cl_std: f64,
     n_samples: usize,
@@ -1116,11 +1048,10 @@ struct ClMap {
 /// without enough samples of its own takes the map of the nearest breakpoint that has them.
 fn fit_cl_map(
     runs: &[PressureRun<'_>],
-    model: &PressureModelF64,
+    table: &PressureTable,
     config: &PressureFitConfig,
-    breakpoints_deg: &[f64],
 ) -> Result<ClMap, PressureFitError> {
-    let samples = cl_samples(runs, model, config.warmup_samples);
+    let samples = cl_samples(runs, table, config.warmup_samples);
     let n_samples = samples.targets.len();
     if n_samples <= N_TAPS + 1 {
         return Err(PressureFitError::TooFewSamples {
@@ -1129,8 +1060,8 @@ fn fit_cl_map(
             needed: N_TAPS + 2,
         });
     }
-    let breakpoints: Vec<f64> = if breakpoints_deg.is_empty() { vec![0.0] } else { breakpoints_deg.to_vec() };
-    let group: Vec<usize> = samples.alpha_deg.iter().map(|&alpha| nearest_breakpoint(&breakpoints, alpha)).collect();
+    let breakpoints = &table.breakpoints_deg;
+    let group: Vec<usize> = samples.alpha_deg.iter().map(|&alpha| nearest_breakpoint(breakpoints, alpha)).collect();
     let mut maps: Vec<Option<([f64; N_TAPS], f64)>> = Vec::with_capacity(breakpoints.len());
     for idx in 0..breakpoints.len() {
         let members: Vec<usize> = (0..n_samples).filter(|&row| group[row] == idx).collect();
@@ -1162,19 +1093,26 @@ fn fit_cl_map(
         }
     }
     let (weights, offsets): (Vec<[f64; N_TAPS]>, Vec<f64>) = maps.into_iter().flatten().unzip();
-    let schedule = ClSchedule { breakpoints_deg: breakpoints, weights, offsets };
+    // The training error of the map as the core applies it: each neighbouring breakpoint's
+    // map, then linear interpolation of the two values.
+    let mapped = |row: &[f64; N_TAPS], alpha_deg: f64| {
+        let map = |idx: usize| weights[idx].iter().zip(row).map(|(w, cp)| w * cp).sum::<f64>() + offsets[idx];
+        let at = table.position(alpha_deg);
+        let low = map(at.lower);
+        if at.weight == 0.0 { low } else { low + at.weight * (map(at.upper) - low) }
+    };
     let n = n_samples as f64;
     let sq_error: f64 = (0..n_samples)
-        .map(|row| (samples.targets[row] - schedule.cl(&samples.rows[row], samples.alpha_deg[row])).powi(2))
+        .map(|row| (samples.targets[row] - mapped(&samples.rows[row], samples.alpha_deg[row])).powi(2))
         .sum();
     let y_mean = samples.targets.iter().sum::<f64>() / n;
     let cl_std = (samples.targets.iter().map(|y| (y - y_mean).powi(2)).sum::<f64>() / n).sqrt();
     let rms = (sq_error / n).sqrt();
-    let finite = schedule.weights.iter().flatten().chain(&schedule.offsets).all(|value| value.is_finite());
+    let finite = weights.iter().flatten().chain(&offsets).all(|value| value.is_finite());
     if !(rms.is_finite() && finite) {
         return Err(PressureFitError::NonFinite("C_l map"));
     }
-    Ok(ClMap { schedule, rms, cl_std, n_samples })
+    Ok(ClMap { weights, offsets, rms, cl_std, n_samples })
 }
 
 /// `y ~ w . x + w0` by ridge regression (Hoerl & Kennard 1970): the columns are centred and
@@ -1220,17 +1158,18 @@ struct ClSamples {
     alpha_deg: Vec<f64>,
 }
 
-fn cl_samples(runs: &[PressureRun<'_>], model: &PressureModelF64, warmup: usize) -> ClSamples {
+fn cl_samples(runs: &[PressureRun<'_>], table: &PressureTable, warmup: usize) -> ClSamples {
     let per_run: Vec<ClSamples> = runs
         .par_iter()
         .filter_map(|run| Some((run, run.disturbance?)))
         .map(|(run, disturbance)| {
             let mut samples =
                 ClSamples { rows: Vec::with_capacity(run.len()), targets: Vec::new(), alpha_deg: Vec::new() };
-            let mut filter = PressureFilterF64::new(model);
+            let mut filter = PressureFilter::at_start(&table.model);
             let mut inputs = HeldInputs::default();
             for (k, &target) in disturbance.iter().enumerate().take(run.len()) {
-                let step = filter.step(model, &inputs.hold(run.inputs(k)), &run.cp_at(k), run.alpha_deg[k]);
+                let step =
+                    filter_step(&mut filter, table, &inputs.hold(run.inputs(k)), &run.cp_at(k), run.alpha_deg[k]);
                 if k >= warmup && target.is_finite() {
                     samples.rows.push(step.filtered_cp);
                     samples.targets.push(target);
@@ -1273,117 +1212,39 @@ impl HeldInputs {
     }
 }
 
-/// The f64 host reference of the core's pressure filter (`estimator_core::pressure`): same
-/// equations, same order, same gating and isolation.
-#[derive(Debug, Clone, PartialEq)]
-pub struct PressureFilterF64 {
-    modes: DVector<f64>,
-    /// Consecutive rejections (or, for an isolated channel, consecutive passes) per channel.
-    streak: [u16; N_TAPS],
-    isolated: u16,
-    /// Steps left before the gate is armed.
-    settling: u16,
-}
-
-/// Result of one f64 filter step.
+/// Result of one step of the core's pressure filter in f64, with what the fit scores.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PressureStepF64 {
-    /// `C_l,p = w(alpha) . (C a + cp_mean) + w0(alpha)`.
+pub struct PressureStep {
+    /// `C_l,p` of the filtered pressures at the step's alpha.
     pub cl: f64,
     /// True when at least one channel corrected the prediction.
     pub measured: bool,
-    /// One-step prediction `C a_pred + cp_mean` of every tap.
+    /// One-step prediction `C (A a + B u) + cp_mean` of every tap.
     pub predicted_cp: [f64; N_TAPS],
     /// Filtered pressures `C a + cp_mean` after the update.
     pub filtered_cp: [f64; N_TAPS],
 }
 
-impl PressureFilterF64 {
-    /// At the mean pressures (zero modes), no channel isolated.
-    #[must_use]
-    pub fn new(model: &PressureModelF64) -> Self {
-        Self { modes: DVector::zeros(model.rank()), streak: [0; N_TAPS], isolated: 0, settling: model.settle_steps }
+/// One step of the core's pressure filter (`estimator_core::pressure`) in f64 on `table`, the
+/// map to `C_l` at `alpha_deg`.
+pub fn filter_step(
+    filter: &mut PressureFilter<f64>,
+    table: &PressureTable,
+    inputs: &[f64; N_PRESSURE_INPUTS],
+    cp: &[f64; N_TAPS],
+    alpha_deg: f64,
+) -> PressureStep {
+    let mut predicted_cp = [f64::NAN; N_TAPS];
+    let estimate =
+        filter.step_observed(&table.model, table.position(alpha_deg), inputs, cp, &mut Health::default(), |expected| {
+            predicted_cp = *expected
+        });
+    PressureStep {
+        cl: estimate.cl,
+        measured: estimate.measured,
+        predicted_cp,
+        filtered_cp: filter.filtered_cp(&table.model),
     }
-
-    /// The reduced state.
-    #[must_use]
-    pub fn modes(&self) -> &DVector<f64> {
-        &self.modes
-    }
-
-    /// Predicts `a_pred = A a + B u`, forms the innovations `Cp - (C a_pred + cp_mean)` of the
-    /// finite taps, gates them at `gate_sigma * innovation_std` (all pass while the filter
-    /// settles, and when none does),
-    /// updates streaks and isolation, applies `a = a_pred + K nu` with the used channels, resets
-    /// a state beyond the core's limit, and maps the state to `C_l,p` with the map at
-    /// `alpha_deg` (`estimator_core::pressure::PressureFilter::step`).
-    pub fn step(
-        &mut self,
-        model: &PressureModelF64,
-        inputs: &[f64; N_PRESSURE_INPUTS],
-        cp: &[f64; N_TAPS],
-        alpha_deg: f64,
-    ) -> PressureStepF64 {
-        let predicted = &model.a * &self.modes + &model.b * DVector::from_row_slice(inputs);
-        let predicted_cp = output(model, &predicted);
-        let mut innovation = [0.0; N_TAPS];
-        let (mut finite_mask, mut pass_mask) = (0u16, 0u16);
-        for tap in (0..N_TAPS).filter(|&tap| cp[tap].is_finite()) {
-            innovation[tap] = cp[tap] - predicted_cp[tap];
-            finite_mask |= 1 << tap;
-            if innovation[tap].abs() <= model.gate_sigma * model.innovation_std[tap] {
-                pass_mask |= 1 << tap;
-            }
-        }
-        // As in the core: while the filter settles, and when every measured channel fails at
-        // once, the prediction is off.
-        if self.settling != 0 {
-            self.settling -= 1;
-            pass_mask = finite_mask;
-        } else if pass_mask == 0 {
-            pass_mask = finite_mask;
-        }
-        let used_mask = self.track_faults(model, finite_mask, pass_mask);
-        for (tap, value) in innovation.iter_mut().enumerate() {
-            if used_mask & (1 << tap) == 0 {
-                *value = 0.0;
-            }
-        }
-        self.modes = predicted + &model.gain * DVector::from_row_slice(&innovation);
-        let within_limit = self.modes.norm_squared() <= STATE_LIMIT * STATE_LIMIT;
-        if !within_limit {
-            self.modes.fill(0.0);
-        }
-        let filtered_cp = output(model, &self.modes);
-        let cl = model.cl_map.cl(&filtered_cp, alpha_deg);
-        PressureStepF64 { cl, measured: used_mask != 0, predicted_cp, filtered_cp }
-    }
-
-    /// Streaks and isolation of the measured channels (`PressureFilter::track_faults`); returns
-    /// the channels that correct the prediction.
-    fn track_faults(&mut self, model: &PressureModelF64, finite_mask: u16, pass_mask: u16) -> u16 {
-        for tap in 0..N_TAPS {
-            let bit = 1u16 << tap;
-            if finite_mask & bit == 0 {
-                continue;
-            }
-            let passes = pass_mask & bit != 0;
-            let isolated = self.isolated & bit != 0;
-            let streak = &mut self.streak[tap];
-            *streak = if passes == isolated { streak.saturating_add(1) } else { 0 };
-            if *streak >= model.isolate_after.max(1) {
-                self.isolated ^= bit;
-                *streak = 0;
-            }
-        }
-        pass_mask & !self.isolated
-    }
-}
-
-/// `C a + cp_mean`.
-fn output(model: &PressureModelF64, modes: &DVector<f64>) -> [f64; N_TAPS] {
-    let cp = &model.c * modes;
-    std::array::from_fn(|tap| cp[tap] + model.cp_mean[tap])
 }
 
 /// Runs the f64 filter over a run from rest and returns `C_l,p` of every sample (the held-out
@@ -1393,12 +1254,12 @@ fn output(model: &PressureModelF64, modes: &DVector<f64>) -> [f64; N_TAPS] {
 /// # Errors
 ///
 /// [`PressureFitError::LengthMismatch`] when the run's channels differ in length.
-pub fn run_pressure_filter(model: &PressureModelF64, run: &PressureRun<'_>) -> Result<Vec<f64>, PressureFitError> {
+pub fn run_pressure_filter(table: &PressureTable, run: &PressureRun<'_>) -> Result<Vec<f64>, PressureFitError> {
     run.check(0)?;
-    let mut filter = PressureFilterF64::new(model);
+    let mut filter = PressureFilter::at_start(&table.model);
     let mut inputs = HeldInputs::default();
     Ok((0..run.len())
-        .map(|k| filter.step(model, &inputs.hold(run.inputs(k)), &run.cp_at(k), run.alpha_deg[k]).cl)
+        .map(|k| filter_step(&mut filter, table, &inputs.hold(run.inputs(k)), &run.cp_at(k), run.alpha_deg[k]).cl)
         .collect())
 }
 
@@ -1452,6 +1313,7 @@ mod tests {
     }
 
     /// One simulated run: inputs, noisy and clean pressures, `C_l`.
+    #[derive(Clone)]
     struct SyntheticRun {
         phi_rad: Vec<f64>,
         phi_dot_rad_s: Vec<f64>,
@@ -1550,17 +1412,17 @@ mod tests {
     #[test]
     fn fitted_model_predicts_heldout_cp_better_than_the_mean() {
         let fixture = fixture();
-        let model = &fixture.fit.model_f64;
+        let table = &fixture.fit.table;
         for (run, _) in &fixture.runs {
             let view = run.view(0..RUN_SAMPLES, false);
-            let mut filter = PressureFilterF64::new(model);
+            let mut filter = PressureFilter::at_start(&table.model);
             let mut errors = Vec::new();
             let mut deviations = Vec::new();
             for k in 0..RUN_SAMPLES {
-                let step = filter.step(model, &view.inputs(k), &view.cp_at(k), 0.0);
+                let step = filter_step(&mut filter, table, &view.inputs(k), &view.cp_at(k), 0.0);
                 if k >= TRAINING {
                     errors.extend((0..N_TAPS).map(|tap| run.cp[tap][k] - step.predicted_cp[tap]));
-                    deviations.extend((0..N_TAPS).map(|tap| run.cp[tap][k] - model.cp_mean[tap]));
+                    deviations.extend((0..N_TAPS).map(|tap| run.cp[tap][k] - table.model.cp_mean[tap]));
                 }
             }
             let (prediction, mean) = (rms(errors.into_iter()), rms(deviations.into_iter()));
@@ -1584,7 +1446,7 @@ mod tests {
         let fixture = fixture();
         println!("{:#?}", fixture.fit.report);
         for (run, disturbance) in &fixture.runs {
-            let cl = run_pressure_filter(&fixture.fit.model_f64, &run.view(0..RUN_SAMPLES, *disturbance)).unwrap();
+            let cl = run_pressure_filter(&fixture.fit.table, &run.view(0..RUN_SAMPLES, *disturbance)).unwrap();
             let error = rms((TRAINING..RUN_SAMPLES).map(|k| cl[k] - run.cl[k]));
             let mean = run.cl[TRAINING..].iter().sum::<f64>() / (RUN_SAMPLES - TRAINING) as f64;
             let spread = rms(run.cl[TRAINING..].iter().map(|cl| cl - mean));
@@ -1605,28 +1467,26 @@ mod tests {
         set.pressure = fit.model;
         estimator_core::blob::validate(&set).unwrap();
         assert_eq!(usize::from(fit.model.rank), fit.report.rank);
-        assert_eq!(PressureModelF64::from_core(&fit.model, &[0.0]).to_core().unwrap(), fit.model);
-        // A model of rank 3 fills only its modes; everything past them is exactly zero.
-        let full = &fit.model_f64;
-        let truncated = PressureModelF64 {
-            a: full.a.view((0, 0), (3, 3)).into_owned(),
-            b: full.b.rows(0, 3).into_owned(),
-            c: full.c.columns(0, 3).into_owned(),
-            gain: full.gain.rows(0, 3).into_owned(),
-            ..full.clone()
-        };
-        let core = truncated.to_core().unwrap();
-        assert_eq!(core.rank, 3);
+        let widened = PressureTable { model: fit.model.cast(), breakpoints_deg: vec![0.0] };
+        assert_eq!(widened.to_core().unwrap(), fit.model, "f32 to f64 and back is exact");
+        // A model of fewer modes (no delays, 90 % of the energy) fills only its modes;
+        // everything past them is exactly zero.
+        let runs = &fixture().runs;
+        let views: Vec<PressureRun<'_>> = runs.iter().map(|(run, dist)| run.view(0..TRAINING, *dist)).collect();
+        let config = PressureFitConfig { delays: 1, energy_fraction: 0.9, ..PressureFitConfig::default() };
+        let small = fit_pressure_model(&views, &config, &[0.0]).unwrap();
+        let (core, rank) = (&small.model, small.report.rank);
+        assert!(rank < PRESSURE_RANK && usize::from(core.rank) == rank, "rank {rank}");
         assert!(
             core.a
                 .iter()
                 .enumerate()
-                .all(|(row, values)| values.iter().enumerate().all(|(col, &v)| (row < 3 && col < 3) || v == 0.0))
+                .all(|(row, values)| values.iter().enumerate().all(|(col, &v)| (row < rank && col < rank) || v == 0.0))
         );
-        assert!(core.b[3..].iter().flatten().all(|&v| v == 0.0));
-        assert!(core.gain[3..].iter().flatten().all(|&v| v == 0.0));
-        assert!(core.c.iter().all(|row| row[3..].iter().all(|&v| v == 0.0)));
-        set.pressure = core;
+        assert!(core.b[rank..].iter().flatten().all(|&v| v == 0.0));
+        assert!(core.gain[rank..].iter().flatten().all(|&v| v == 0.0));
+        assert!(core.c.iter().all(|row| row[rank..].iter().all(|&v| v == 0.0)));
+        set.pressure = *core;
         estimator_core::blob::validate(&set).unwrap();
     }
 
@@ -1635,23 +1495,31 @@ mod tests {
     /// innovation standard deviation of 0.1 first at n = 4 (0.094; n = 3 gives 0.19).
     #[test]
     fn settle_steps_follow_the_error_decay_to_one_innovation_std() {
-        let model = PressureModelF64 {
-            a: DMatrix::from_element(1, 1, 0.5),
-            b: DMatrix::zeros(1, N_PRESSURE_INPUTS),
-            c: DMatrix::from_element(N_TAPS, 1, 1.0),
+        let mut model = PressureModel::<f64> {
+            rank: 1,
+            a: [[0.0; PRESSURE_RANK]; PRESSURE_RANK],
+            b: [[0.0; N_PRESSURE_INPUTS]; PRESSURE_RANK],
+            c: [[0.0; PRESSURE_RANK]; N_TAPS],
             cp_mean: [0.0; N_TAPS],
-            gain: DMatrix::zeros(1, N_TAPS),
+            gain: [[0.0; N_TAPS]; PRESSURE_RANK],
             innovation_std: [0.1; N_TAPS],
             gate_sigma: 5.0,
             isolate_after: 20,
             settle_steps: 0,
-            cl_map: ClSchedule::constant([0.0; N_TAPS], 0.0),
+            cl_weights: [[0.0; N_TAPS]; N_ALPHA],
+            cl_offset: [0.0; N_ALPHA],
         };
+        model.a[0][0] = 0.5;
+        for row in &mut model.c {
+            row[0] = 1.0;
+        }
+        let table = PressureTable { model, breakpoints_deg: vec![0.0] };
         let unit = DMatrix::from_element(1, 1, 1.0);
-        assert_eq!(settle_steps(&model, &unit), Ok(4));
+        assert_eq!(settle_steps(&table, &unit), Ok(4));
         // A state that never strays from the mean needs no settling; one that never decays fails.
-        assert_eq!(settle_steps(&model, &DMatrix::zeros(1, 1)), Ok(0));
-        let stuck = PressureModelF64 { a: DMatrix::from_element(1, 1, 1.0), ..model.clone() };
+        assert_eq!(settle_steps(&table, &DMatrix::zeros(1, 1)), Ok(0));
+        let mut stuck = table.clone();
+        stuck.model.a[0][0] = 1.0;
         assert!(matches!(settle_steps(&stuck, &unit), Err(PressureFitError::InvalidModel(_))));
         // The fit on the synthetic runs settles within its warm-up and arms the gate.
         let fitted = &fixture().fit;
@@ -1659,29 +1527,56 @@ mod tests {
         assert_eq!(fitted.model.settle_steps, fitted.report.settle_steps);
     }
 
+    /// The core's filter in f32 (the target's) and in f64 (the fit's and the diagnosis's) on
+    /// the same faulty readings: a stuck channel (the same value for 2 s), a dead one (NaN for
+    /// 1 s), spikes of 50 noise deviations, an infinite reading and missing inputs (held, as
+    /// the estimator holds them). `C_l,p` agrees within 1e-4 of its spread, and the channels
+    /// each rejects and isolates differ in at most 0.1 % of the steps (a reading within
+    /// round-off of the gate).
     #[test]
-    fn core_f32_filter_agrees_with_the_f64_filter() {
+    fn pressure_filter_in_f32_and_f64_agrees_on_faulty_inputs() {
         let fixture = fixture();
-        let (model, model_f64) = (&fixture.fit.model, &fixture.fit.model_f64);
-        let (run, _) = &fixture.runs[2];
-        let reference = run_pressure_filter(model_f64, &run.view(0..RUN_SAMPLES, false)).unwrap();
-        let mut core = PressureFilter::new(model);
-        let mut worst = 0.0f64;
-        for (k, expected) in reference.iter().enumerate() {
-            let inputs = [run.phi_rad[k], run.phi_dot_rad_s[k], run.cmu[0][k], run.cmu[1][k], 1.0].map(|v| v as f32);
-            let cp: [f32; N_TAPS] = std::array::from_fn(|tap| run.cp[tap][k] as f32);
-            let estimate = core.step(
+        let (model, table) = (&fixture.fit.model, &fixture.fit.table);
+        let (clean, _) = &fixture.runs[2];
+        let mut run = clean.clone();
+        let stuck_at = run.cp[2][4_000];
+        run.cp[2][4_000..6_000].fill(stuck_at);
+        run.cp[5][8_000..9_000].fill(f64::NAN);
+        for k in (500..RUN_SAMPLES).step_by(997) {
+            run.cp[7][k] += 50.0 * NOISE_STD;
+            run.phi_rad[k + 3] = f64::NAN;
+        }
+        run.cp[9][12_000] = f64::INFINITY;
+        let (mut narrow, mut wide) = (PressureFilter::new(model), PressureFilter::at_start(&table.model));
+        let mut held = HeldInputs::default();
+        let (mut worst, mut differing, mut isolated_stuck) = (0.0f64, 0usize, [false; 2]);
+        for k in 0..RUN_SAMPLES {
+            let inputs = held.hold([run.phi_rad[k], run.phi_dot_rad_s[k], run.cmu[0][k], run.cmu[1][k], 1.0]);
+            let cp: [f64; N_TAPS] = std::array::from_fn(|tap| run.cp[tap][k]);
+            let (mut health_f32, mut health_f64) = (Health::default(), Health::default());
+            let low = narrow.step(
                 model,
-                estimator_core::schedule::SchedulePosition::FIRST,
-                &inputs,
-                &cp,
-                &mut Health::default(),
+                SchedulePosition::FIRST,
+                &inputs.map(|v| v as f32),
+                &cp.map(|v| v as f32),
+                &mut health_f32,
             );
-            worst = worst.max((f64::from(estimate.cl) - expected).abs());
+            let high = wide.step(&table.model, SchedulePosition::FIRST, &inputs, &cp, &mut health_f64);
+            assert!(low.cl.is_finite() && high.cl.is_finite(), "step {k}");
+            worst = worst.max((f64::from(low.cl) - high.cl).abs());
+            let masks = |health: &Health| (health.cp_rejected, health.cp_isolated, health.cp_missing);
+            differing += usize::from(masks(&health_f32) != masks(&health_f64));
+            if k == 5_999 {
+                isolated_stuck = [health_f32.cp_isolated & 0b100 != 0, health_f64.cp_isolated & 0b100 != 0];
+            }
         }
         let scale = fixture.fit.report.cl_std;
-        println!("core f32 vs f64 C_l,p: worst {worst:.3e}, C_l std {scale:.3e}");
+        println!(
+            "core f32 vs f64 C_l,p on faulty inputs: worst {worst:.3e}, C_l std {scale:.3e}, {differing} steps differ"
+        );
         assert!(worst < 1e-4 * scale, "{worst} vs {scale}");
+        assert!(differing * 1000 <= RUN_SAMPLES, "{differing} steps with other channel flags");
+        assert_eq!(isolated_stuck, [true, true], "the stuck channel is isolated in both");
     }
 
     #[test]
@@ -1706,7 +1601,7 @@ mod tests {
         let truth = NOISE_STD * NOISE_STD;
         assert!(fit.report.noise_variance.iter().all(|variance| (variance / truth - 1.0).abs() < 0.2));
         assert!(fit.report.n_snapshots < TRAINING - 15);
-        let cl = run_pressure_filter(&fit.model_f64, &run.view(0..RUN_SAMPLES, true)).unwrap();
+        let cl = run_pressure_filter(&fit.table, &run.view(0..RUN_SAMPLES, true)).unwrap();
         assert!(cl.iter().all(|value| value.is_finite()));
         let error = rms((TRAINING..RUN_SAMPLES).filter(|&k| run.cl[k].is_finite()).map(|k| cl[k] - run.cl[k]));
         assert!(error < 0.1 * fit.report.cl_std, "{error} vs {}", fit.report.cl_std);
@@ -1729,7 +1624,7 @@ mod tests {
             let fit = fit_pressure_model(&training, &PressureFitConfig::default(), breakpoints).unwrap();
             runs.iter()
                 .map(|run| {
-                    let cl = run_pressure_filter(&fit.model_f64, &run.view(0..RUN_SAMPLES, true)).unwrap();
+                    let cl = run_pressure_filter(&fit.table, &run.view(0..RUN_SAMPLES, true)).unwrap();
                     let error = rms((TRAINING..RUN_SAMPLES).map(|k| cl[k] - run.cl[k]));
                     let spread = rms((TRAINING..RUN_SAMPLES).map(|k| run.cl[k] - run.cl[TRAINING]));
                     error / spread
@@ -1755,7 +1650,7 @@ mod tests {
         assert_eq!(fit.report.dead_taps, vec![4]);
         assert!(fit.model.c[3].iter().all(|&value| value == 0.0));
         assert!(fit.model.gain.iter().all(|row| row[3] == 0.0));
-        let cl = run_pressure_filter(&fit.model_f64, &run.view(0..RUN_SAMPLES, true)).unwrap();
+        let cl = run_pressure_filter(&fit.table, &run.view(0..RUN_SAMPLES, true)).unwrap();
         let error = rms((TRAINING..RUN_SAMPLES).map(|k| cl[k] - run.cl[k]));
         assert!(error < 0.2 * fit.report.cl_std, "{error} vs {}", fit.report.cl_std);
         let mut silent = simulate(&system, 92, true);
@@ -1767,21 +1662,13 @@ mod tests {
     }
 
     #[test]
-    fn schedule_interpolates_between_breakpoints_and_holds_outside() {
-        let map = ClSchedule {
-            breakpoints_deg: vec![0.0, 10.0, 20.0],
-            weights: vec![[1.0; N_TAPS], [2.0; N_TAPS], [4.0; N_TAPS]],
-            offsets: vec![0.0, 1.0, 2.0],
-        };
-        let cp = [0.5; N_TAPS];
-        let at = |alpha: f64| map.cl(&cp, alpha);
-        assert_eq!(at(-5.0), 6.0);
-        assert_eq!(at(0.0), 6.0);
-        assert_eq!(at(5.0), 0.5 * (6.0 + 13.0));
-        assert_eq!(at(20.0), 26.0);
-        assert_eq!(at(35.0), 26.0);
-        assert_eq!(nearest_breakpoint(&map.breakpoints_deg, 14.0), 1);
-        assert_eq!(nearest_breakpoint(&map.breakpoints_deg, 16.0), 2);
+    fn samples_of_the_map_fit_go_to_the_nearest_breakpoint() {
+        let breakpoints_deg = [0.0, 10.0, 20.0];
+        assert_eq!(nearest_breakpoint(&breakpoints_deg, -5.0), 0);
+        assert_eq!(nearest_breakpoint(&breakpoints_deg, 5.0), 0, "a tie goes to the first");
+        assert_eq!(nearest_breakpoint(&breakpoints_deg, 14.0), 1);
+        assert_eq!(nearest_breakpoint(&breakpoints_deg, 16.0), 2);
+        assert_eq!(nearest_breakpoint(&breakpoints_deg, 35.0), 2);
     }
 
     #[test]
@@ -1868,6 +1755,6 @@ mod tests {
             fit_pressure_model(&[short], &PressureFitConfig::default(), &[0.0]),
             Err(PressureFitError::LengthMismatch { channel: "cl", .. })
         ));
-        assert!(run_pressure_filter(&fixture.fit.model_f64, &short).is_err());
+        assert!(run_pressure_filter(&fixture.fit.table, &short).is_err());
     }
 }
