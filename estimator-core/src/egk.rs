@@ -18,23 +18,29 @@
 //!
 //! The input is held over the step that ends at `k` (the sample of step `k`), so the state of
 //! step `k` already responds to the input of step `k`.
+//!
+//! The equations are generic over the scalar ([`crate::real`]): the estimator's [`Egk`] runs
+//! them in f32 on the coefficient set's schedule; the host's fit runs [`EgkState`] in f64 at
+//! each angle of attack.
 
 use crate::coeffs::{CoefficientSet, EgkParams, N_ALPHA};
+use crate::real::Real;
 use crate::schedule::SchedulePosition;
 
 /// Exact zero-order-hold update of `tau x' + x = x0` over one step: `x0 + (x - x0) decay`
 /// with `decay = exp(-dt / tau)`.
 #[must_use]
-pub fn gk_update(state: f32, target: f32, decay: f32) -> f32 {
+pub fn gk_update<R: Real>(state: R, target: R, decay: R) -> R {
     target + (state - target) * decay
 }
 
 /// Fischenberg breakdown curve `x0(a) = (1 - tanh(k (a - a*))) / 2`, `a` in deg, computed as
-/// the identical logistic `1 / (1 + e^(2 k (a - a*)))` with the f32 exponential of
-/// [`crate::exp`] (one exponential and a division instead of libm's `tanhf`).
+/// the identical logistic `1 / (1 + e^(2 k (a - a*)))` with the scalar's exponential (in f32
+/// [`crate::exp`]: one exponential and a division instead of libm's `tanhf`).
 #[must_use]
-pub fn breakdown_curve(params: &EgkParams, incidence_deg: f32) -> f32 {
-    1.0 / (1.0 + crate::exp::exp(2.0 * params.steepness_per_deg * (incidence_deg - params.breakdown_deg)))
+pub fn breakdown_curve<R: Real>(params: &EgkParams<R>, incidence_deg: R) -> R {
+    let two = R::ONE + R::ONE;
+    R::ONE / (R::ONE + (two * params.steepness_per_deg * (incidence_deg - params.breakdown_deg)).exp())
 }
 
 /// The eGK parameters at `alpha_deg`: linear interpolation between the schedule's breakpoints,
@@ -73,36 +79,36 @@ fn interpolate(low: &EgkParams, high: &EgkParams, weight: f32) -> EgkParams {
 
 /// Geometry of body-axis roll at one instant.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct RollGeometry {
+pub struct RollGeometry<R = f32> {
     /// Sideslip `beta = asin(sin alpha sin phi)`, rad.
-    pub beta_rad: f32,
+    pub beta_rad: R,
     /// Effective incidence of the port and starboard half-wings, deg.
-    pub incidence_deg: [f32; 2],
+    pub incidence_deg: [R; 2],
     /// Their rates, deg/s.
-    pub incidence_rate_deg_s: [f32; 2],
+    pub incidence_rate_deg_s: [R; 2],
 }
 
 /// Sideslip and half-wing incidences under body-axis roll (domain-models.md section 1):
 /// `beta = asin(sin alpha sin phi)`, `alpha_b = atan(tan alpha cos phi)`, and the windward
 /// half-wing sees `alpha_b + kb beta`.
 #[must_use]
-pub fn roll_geometry(
-    sin_alpha: f32,
-    tan_alpha: f32,
-    sideslip_gain: f32,
-    phi_rad: f32,
-    phi_dot_rad_s: f32,
-) -> RollGeometry {
-    let (sin_phi, cos_phi) = crate::trig::sin_cos(phi_rad);
-    let sin_beta = (sin_alpha * sin_phi).clamp(-1.0, 1.0);
-    let beta_rad = libm::asinf(sin_beta);
+pub fn roll_geometry<R: Real>(
+    sin_alpha: R,
+    tan_alpha: R,
+    sideslip_gain: R,
+    phi_rad: R,
+    phi_dot_rad_s: R,
+) -> RollGeometry<R> {
+    let (sin_phi, cos_phi) = phi_rad.sin_cos();
+    let sin_beta = (sin_alpha * sin_phi).clamp(-R::ONE, R::ONE);
+    let beta_rad = sin_beta.asin();
     let tan_cos = tan_alpha * cos_phi;
-    let alpha_b = libm::atanf(tan_cos);
+    let alpha_b = tan_cos.atan();
     // cos(asin(s)) = sqrt(1 - s^2): a square root instead of a cosine.
-    let cos_beta = crate::max_num(libm::sqrtf(1.0 - sin_beta * sin_beta), 1e-6);
+    let cos_beta = crate::max_num((R::ONE - sin_beta * sin_beta).sqrt(), R::from_f64(1e-6));
     let dbeta_dphi = sin_alpha * cos_phi / cos_beta;
-    let dalpha_b_dphi = -tan_alpha * sin_phi / (1.0 + tan_cos * tan_cos);
-    let to_deg = 180.0 / core::f32::consts::PI;
+    let dalpha_b_dphi = -tan_alpha * sin_phi / (R::ONE + tan_cos * tan_cos);
+    let to_deg = R::DEG_PER_RAD;
     let kb = sideslip_gain;
     RollGeometry {
         beta_rad,
@@ -114,31 +120,125 @@ pub fn roll_geometry(
     }
 }
 
-/// The eGK stage: its two flow states and the parameters cached for the current alpha.
+/// The eGK at one angle of attack: its parameters there and the constants they give.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Egk {
-    vortex: [f32; 2],
+pub struct EgkConstants<R = f32> {
+    /// The parameters.
+    pub params: EgkParams<R>,
+    /// `exp(-dt / tau1)`.
+    decay: R,
+    sin_alpha: R,
+    /// `tan alpha`, alpha limited to +-1.5 rad.
+    tan_alpha: R,
+}
+
+impl<R: Real> EgkConstants<R> {
+    /// The constants of `params` at `alpha_deg` for the step `dt_s`, in the scalar's own
+    /// functions (f32: [`crate::exp`], [`crate::trig`]; libm's `expf`, `sinf` and `tanf`
+    /// compute in f64, which the M4F emulates in software at thousands of instructions, and
+    /// in flight alpha changes every step). The estimator holds alpha within +-60 deg, inside
+    /// the +-90 deg of `sin_cos`; `tan` is limited to `+-1.5` rad.
+    #[must_use]
+    pub fn new(params: EgkParams<R>, alpha_deg: R, dt_s: R) -> Self {
+        let tau1_s = crate::max_num(params.tau1_s, R::from_f64(1e-6));
+        let decay = (-dt_s / tau1_s).exp();
+        let alpha_rad = alpha_deg * R::RAD_PER_DEG;
+        let sin_alpha = alpha_rad.sin_cos().0;
+        let limit = R::from_f64(1.5);
+        let (sin_limited, cos_limited) = alpha_rad.clamp(-limit, limit).sin_cos();
+        Self { params, decay, sin_alpha, tan_alpha: sin_limited / cos_limited }
+    }
+}
+
+/// The regressors of the eGK's output map at one step, in the order of its weights
+/// `[C_l,beta, C_l,p, C_l,pdot, C_l,p|p|, K_v, C_l,0]`:
+/// `[beta, p_hat, p_hat_dot, p_hat |p_hat|, x_L - x_R, 1]`. The map is linear in the weights
+/// once the states are known (the host's fit solves for them).
+pub type EgkRegressors<R> = [R; 6];
+
+/// The eGK's two flow states.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EgkState<R = f32> {
+    vortex: [R; 2],
     primed: bool,
-    cached_alpha_deg: f32,
-    /// Where the cached alpha lies in the schedule (the pressure path's map uses it too).
-    at: SchedulePosition,
-    params: EgkParams,
-    decay: f32,
-    sin_alpha: f32,
-    tan_alpha: f32,
 }
 
 /// Kinematic inputs of one eGK step.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct EgkInput {
+pub struct EgkInput<R = f32> {
     /// Roll angle, rad.
-    pub phi_rad: f32,
+    pub phi_rad: R,
     /// Roll rate, rad/s.
-    pub phi_dot_rad_s: f32,
+    pub phi_dot_rad_s: R,
     /// Roll acceleration, rad/s^2.
-    pub phi_ddot_rad_s2: f32,
+    pub phi_ddot_rad_s2: R,
     /// Angle of attack, deg.
-    pub alpha_deg: f32,
+    pub alpha_deg: R,
+}
+
+impl<R: Real> EgkState<R> {
+    /// Before its first step: the states are set to their quasi-steady values then.
+    #[must_use]
+    pub const fn new() -> Self {
+        Self { vortex: [R::ONE; 2], primed: false }
+    }
+
+    /// The flow states (port, starboard).
+    #[must_use]
+    pub const fn vortex(&self) -> [R; 2] {
+        self.vortex
+    }
+
+    /// One step at `constants` (the input's alpha is theirs); returns the output map's
+    /// regressors and whether a state had to be reset.
+    pub fn advance(&mut self, constants: &EgkConstants<R>, input: &EgkInput<R>) -> (EgkRegressors<R>, bool) {
+        let params = &constants.params;
+        let geometry = roll_geometry(
+            constants.sin_alpha,
+            constants.tan_alpha,
+            params.sideslip_gain,
+            input.phi_rad,
+            input.phi_dot_rad_s,
+        );
+        let mut reset = false;
+        for side in 0..2 {
+            let lagged = geometry.incidence_deg[side] - params.tau2_s * geometry.incidence_rate_deg_s[side];
+            let target = breakdown_curve(params, lagged);
+            let next = if self.primed { gk_update(self.vortex[side], target, constants.decay) } else { target };
+            reset |= !next.is_finite();
+            self.vortex[side] = if next.is_finite() { next.clamp(R::ZERO, R::ONE) } else { R::ONE };
+        }
+        self.primed = true;
+        let p_hat = input.phi_dot_rad_s * params.half_span_time_s;
+        let p_hat_dot = input.phi_ddot_rad_s2 * params.half_span_time_s * params.half_span_time_s;
+        let regressors =
+            [geometry.beta_rad, p_hat, p_hat_dot, p_hat * p_hat.abs(), self.vortex[0] - self.vortex[1], R::ONE];
+        (regressors, reset)
+    }
+}
+
+impl<R: Real> Default for EgkState<R> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// The output map: `C_l = w . regressors`, summed in the weights' order.
+#[must_use]
+pub fn output_map<R: Real>(params: &EgkParams<R>, regressors: &EgkRegressors<R>) -> R {
+    let weights = [params.clbeta_per_rad, params.clp, params.clpdot, params.clpp, params.vortex_gain, params.bias];
+    weights.iter().zip(regressors).fold(R::NEG_ZERO, |sum, (&w, &x)| sum + w * x)
+}
+
+/// The estimator's eGK stage: its two flow states and the constants cached for the current
+/// alpha, from the coefficient set's schedule.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Egk {
+    state: EgkState,
+    cached_alpha_deg: f32,
+    /// Where the cached alpha lies in the schedule (the pressure path's map uses it too).
+    at: SchedulePosition,
+    constants: EgkConstants,
 }
 
 impl Egk {
@@ -146,27 +246,28 @@ impl Egk {
     #[must_use]
     pub const fn new() -> Self {
         Self {
-            vortex: [1.0; 2],
-            primed: false,
+            state: EgkState::new(),
             cached_alpha_deg: f32::NAN,
             at: SchedulePosition::FIRST,
-            params: EgkParams {
-                tau1_s: 1.0,
-                tau2_s: 0.0,
-                breakdown_deg: 0.0,
-                steepness_per_deg: 0.0,
-                sideslip_gain: 0.0,
-                clbeta_per_rad: 0.0,
-                clp: 0.0,
-                clpdot: 0.0,
-                clpp: 0.0,
-                vortex_gain: 0.0,
-                bias: 0.0,
-                half_span_time_s: 0.0,
+            constants: EgkConstants {
+                params: EgkParams {
+                    tau1_s: 1.0,
+                    tau2_s: 0.0,
+                    breakdown_deg: 0.0,
+                    steepness_per_deg: 0.0,
+                    sideslip_gain: 0.0,
+                    clbeta_per_rad: 0.0,
+                    clp: 0.0,
+                    clpdot: 0.0,
+                    clpp: 0.0,
+                    vortex_gain: 0.0,
+                    bias: 0.0,
+                    half_span_time_s: 0.0,
+                },
+                decay: 0.0,
+                sin_alpha: 0.0,
+                tan_alpha: 0.0,
             },
-            decay: 0.0,
-            sin_alpha: 0.0,
-            tan_alpha: 0.0,
         }
     }
 
@@ -180,53 +281,24 @@ impl Egk {
     /// The flow states (port, starboard).
     #[must_use]
     pub const fn vortex(&self) -> [f32; 2] {
-        self.vortex
+        self.state.vortex
     }
 
     /// One step; returns `C_l,roll,eGK` and whether a state had to be reset.
     pub fn step(&mut self, set: &CoefficientSet, input: &EgkInput) -> (f32, bool) {
         self.refresh_alpha(set, input.alpha_deg);
-        let params = self.params;
-        let geometry =
-            roll_geometry(self.sin_alpha, self.tan_alpha, params.sideslip_gain, input.phi_rad, input.phi_dot_rad_s);
-        let mut reset = false;
-        for side in 0..2 {
-            let lagged = geometry.incidence_deg[side] - params.tau2_s * geometry.incidence_rate_deg_s[side];
-            let target = breakdown_curve(&params, lagged);
-            let next = if self.primed { gk_update(self.vortex[side], target, self.decay) } else { target };
-            reset |= !next.is_finite();
-            self.vortex[side] = if next.is_finite() { next.clamp(0.0, 1.0) } else { 1.0 };
-        }
-        self.primed = true;
-        let p_hat = input.phi_dot_rad_s * params.half_span_time_s;
-        let p_hat_dot = input.phi_ddot_rad_s2 * params.half_span_time_s * params.half_span_time_s;
-        let cl = params.clbeta_per_rad * geometry.beta_rad
-            + params.clp * p_hat
-            + params.clpdot * p_hat_dot
-            + params.clpp * p_hat * p_hat.abs()
-            + params.vortex_gain * (self.vortex[0] - self.vortex[1])
-            + params.bias;
-        (cl, reset)
+        let (regressors, reset) = self.state.advance(&self.constants, input);
+        (output_map(&self.constants.params, &regressors), reset)
     }
 
-    /// Recomputes the alpha-dependent constants when alpha changes (bitwise). In flight alpha
-    /// changes every step, so this is in f32 arithmetic only ([`crate::exp`],
-    /// [`crate::trig`]): libm's `expf`, `sinf` and `tanf` compute in f64, which the M4F
-    /// emulates in software at thousands of instructions. The estimator holds alpha within
-    /// +-60 deg, inside the +-90 deg of `sin_cos`; `tan` is limited to `+-1.5` rad as before.
+    /// Recomputes the alpha-dependent constants when alpha changes (bitwise).
     fn refresh_alpha(&mut self, set: &CoefficientSet, alpha_deg: f32) {
         if alpha_deg.to_bits() == self.cached_alpha_deg.to_bits() {
             return;
         }
         self.cached_alpha_deg = alpha_deg;
         self.at = crate::schedule::position(set, alpha_deg);
-        self.params = params_from(set, self.at);
-        let tau1_s = crate::max_num(self.params.tau1_s, 1e-6);
-        self.decay = crate::exp::exp(-set.dt_s / tau1_s);
-        let alpha_rad = alpha_deg.to_radians();
-        self.sin_alpha = crate::trig::sin_cos(alpha_rad).0;
-        let (sin_limited, cos_limited) = crate::trig::sin_cos(alpha_rad.clamp(-1.5, 1.5));
-        self.tan_alpha = sin_limited / cos_limited;
+        self.constants = EgkConstants::new(params_from(set, self.at), alpha_deg, set.dt_s);
     }
 }
 

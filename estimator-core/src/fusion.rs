@@ -5,34 +5,35 @@
 //! trend and bias, as the paper's conclusion describes.
 
 use crate::coeffs::FusionParams;
+use crate::real::Real;
 
 /// Largest eGK error the fusion accepts before it resets (10 times any physical C_l).
 const ERROR_LIMIT: f32 = 10.0;
 
 /// The fusion filter's state.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct Fusion {
-    error: f32,
+pub struct Fusion<R = f32> {
+    error: R,
 }
 
-impl Fusion {
+impl<R: Real> Fusion<R> {
     /// No error estimated yet.
     #[must_use]
     pub const fn new() -> Self {
-        Self { error: 0.0 }
+        Self { error: R::ZERO }
     }
 
     /// One step. `cl_pressure` is `None` when the pressure path measured nothing this step; the
     /// error estimate then only decays. Returns `C_l,roll` and whether the state was reset.
-    pub fn step(&mut self, params: &FusionParams, cl_egk: f32, cl_pressure: Option<f32>) -> (f32, bool) {
+    pub fn step(&mut self, params: &FusionParams<R>, cl_egk: R, cl_pressure: Option<R>) -> (R, bool) {
         let predicted = params.rho * self.error;
         self.error = match cl_pressure {
             Some(cl_pressure) => predicted + params.gain * ((cl_pressure - cl_egk) - predicted),
             None => predicted,
         };
-        let reset = !crate::bounded(self.error, ERROR_LIMIT);
+        let reset = !crate::bounded(self.error, R::from_f32(ERROR_LIMIT));
         if reset {
-            self.error = 0.0;
+            self.error = R::ZERO;
         }
         (cl_egk + self.error, reset)
     }

@@ -3,50 +3,57 @@
 //! differentiator followed by a first-order low-pass with the input held over the step.
 
 use crate::coeffs::RateFilter;
+use crate::real::Real;
 
 /// State of the two cascaded differentiators.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct RateEstimator {
-    last_phi_rad: f32,
-    phi_dot_rad_s: f32,
-    last_phi_dot_rad_s: f32,
-    phi_ddot_rad_s2: f32,
+pub struct RateEstimator<R = f32> {
+    last_phi_rad: R,
+    phi_dot_rad_s: R,
+    last_phi_dot_rad_s: R,
+    phi_ddot_rad_s2: R,
     primed: bool,
 }
 
 /// Roll rate and acceleration.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct RollRates {
+pub struct RollRates<R = f32> {
     /// Filtered roll rate, rad/s.
-    pub phi_dot_rad_s: f32,
+    pub phi_dot_rad_s: R,
     /// Filtered roll acceleration, rad/s^2.
-    pub phi_ddot_rad_s2: f32,
+    pub phi_ddot_rad_s2: R,
 }
 
-impl RateEstimator {
+impl<R: Real> RateEstimator<R> {
     /// At rest, waiting for its first angle.
     #[must_use]
     pub const fn new() -> Self {
-        Self { last_phi_rad: 0.0, phi_dot_rad_s: 0.0, last_phi_dot_rad_s: 0.0, phi_ddot_rad_s2: 0.0, primed: false }
+        Self {
+            last_phi_rad: R::ZERO,
+            phi_dot_rad_s: R::ZERO,
+            last_phi_dot_rad_s: R::ZERO,
+            phi_ddot_rad_s2: R::ZERO,
+            primed: false,
+        }
     }
 
     /// The filtered roll rate of the last step, rad/s.
     #[must_use]
-    pub const fn phi_dot_rad_s(&self) -> f32 {
+    pub const fn phi_dot_rad_s(&self) -> R {
         self.phi_dot_rad_s
     }
 
     /// Advances with the roll angle of this step (finite, already validated by the caller);
     /// `rate_hz = 1 / dt`.
-    pub fn step(&mut self, filter: &RateFilter, rate_hz: f32, phi_rad: f32) -> RollRates {
+    pub fn step(&mut self, filter: &RateFilter<R>, rate_hz: R, phi_rad: R) -> RollRates<R> {
         if !self.primed {
             self.last_phi_rad = phi_rad;
             self.primed = true;
         }
         let raw_rate = (phi_rad - self.last_phi_rad) * rate_hz;
-        self.phi_dot_rad_s = filter.rate_pole * self.phi_dot_rad_s + (1.0 - filter.rate_pole) * raw_rate;
+        self.phi_dot_rad_s = filter.rate_pole * self.phi_dot_rad_s + (R::ONE - filter.rate_pole) * raw_rate;
         let raw_accel = (self.phi_dot_rad_s - self.last_phi_dot_rad_s) * rate_hz;
-        self.phi_ddot_rad_s2 = filter.accel_pole * self.phi_ddot_rad_s2 + (1.0 - filter.accel_pole) * raw_accel;
+        self.phi_ddot_rad_s2 = filter.accel_pole * self.phi_ddot_rad_s2 + (R::ONE - filter.accel_pole) * raw_accel;
         self.last_phi_rad = phi_rad;
         self.last_phi_dot_rad_s = self.phi_dot_rad_s;
         if !(self.phi_dot_rad_s.is_finite() && self.phi_ddot_rad_s2.is_finite()) {
@@ -56,7 +63,7 @@ impl RateEstimator {
     }
 }
 
-impl Default for RateEstimator {
+impl<R: Real> Default for RateEstimator<R> {
     fn default() -> Self {
         Self::new()
     }

@@ -44,6 +44,8 @@ pub trait Real:
     const FRAC_PI_2: Self;
     /// `180 / pi`: degrees per radian.
     const DEG_PER_RAD: Self;
+    /// `pi / 180`: radians per degree (as `to_radians` multiplies).
+    const RAD_PER_DEG: Self;
 
     /// The nearest value to `value` (exact for f64; rounded to nearest for f32).
     fn from_f64(value: f64) -> Self;
@@ -90,6 +92,7 @@ impl Real for f32 {
     const NAN: Self = f32::NAN;
     const FRAC_PI_2: Self = core::f32::consts::FRAC_PI_2;
     const DEG_PER_RAD: Self = 180.0 / core::f32::consts::PI;
+    const RAD_PER_DEG: Self = core::f32::consts::PI / 180.0;
 
     #[inline]
     fn from_f64(value: f64) -> Self {
@@ -154,6 +157,7 @@ impl Real for f64 {
     const NAN: Self = f64::NAN;
     const FRAC_PI_2: Self = core::f64::consts::FRAC_PI_2;
     const DEG_PER_RAD: Self = 180.0 / core::f64::consts::PI;
+    const RAD_PER_DEG: Self = core::f64::consts::PI / 180.0;
 
     #[inline]
     fn from_f64(value: f64) -> Self {

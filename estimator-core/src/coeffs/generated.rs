@@ -27,7 +27,7 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
             clp: -0.16990839,
             clpdot: -0.027071139,
             clpp: 0.010555203,
-            vortex_gain: 3.1775384e-18,
+            vortex_gain: -3.6963397e-18,
             bias: -1.9504687e-6,
             half_span_time_s: 0.022076923,
         },
@@ -35,98 +35,98 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
             tau1_s: 0.1909124,
             tau2_s: 0.092866495,
             breakdown_deg: 24.427158,
-            steepness_per_deg: 0.20251471,
+            steepness_per_deg: 0.20251468,
             sideslip_gain: 0.5067067,
             clbeta_per_rad: -0.074579984,
             clp: -0.16972509,
             clpdot: -0.026983682,
             clpp: 0.010519491,
-            vortex_gain: 0.01889736,
-            bias: -1.4463865e-6,
+            vortex_gain: 0.018897347,
+            bias: -1.4463864e-6,
             half_span_time_s: 0.022076923,
         },
         EgkParams {
             tau1_s: 0.1512427,
-            tau2_s: 0.025466574,
+            tau2_s: 0.025466572,
             breakdown_deg: 20.72091,
-            steepness_per_deg: 0.25254172,
-            sideslip_gain: 0.77814156,
+            steepness_per_deg: 0.2525416,
+            sideslip_gain: 0.778142,
             clbeta_per_rad: -0.15061273,
             clp: -0.16954441,
             clpdot: -0.02779798,
-            clpp: 0.0089011565,
-            vortex_gain: 0.031231461,
-            bias: -4.9185937e-6,
+            clpp: 0.008901153,
+            vortex_gain: 0.031231457,
+            bias: -4.918594e-6,
             half_span_time_s: 0.022076923,
         },
         EgkParams {
             tau1_s: 0.1512427,
-            tau2_s: 0.025466574,
+            tau2_s: 0.025466572,
             breakdown_deg: 20.72091,
-            steepness_per_deg: 0.25254172,
-            sideslip_gain: 0.77814156,
+            steepness_per_deg: 0.2525416,
+            sideslip_gain: 0.778142,
             clbeta_per_rad: -0.15061273,
             clp: -0.16954441,
             clpdot: -0.02779798,
-            clpp: 0.0089011565,
-            vortex_gain: 0.031231461,
-            bias: -4.9185937e-6,
+            clpp: 0.008901153,
+            vortex_gain: 0.031231457,
+            bias: -4.918594e-6,
             half_span_time_s: 0.022076923,
         },
         EgkParams {
             tau1_s: 0.1512427,
-            tau2_s: 0.025466574,
+            tau2_s: 0.025466572,
             breakdown_deg: 20.72091,
-            steepness_per_deg: 0.25254172,
-            sideslip_gain: 0.77814156,
+            steepness_per_deg: 0.2525416,
+            sideslip_gain: 0.778142,
             clbeta_per_rad: -0.15061273,
             clp: -0.16954441,
             clpdot: -0.02779798,
-            clpp: 0.0089011565,
-            vortex_gain: 0.031231461,
-            bias: -4.9185937e-6,
+            clpp: 0.008901153,
+            vortex_gain: 0.031231457,
+            bias: -4.918594e-6,
             half_span_time_s: 0.022076923,
         },
         EgkParams {
             tau1_s: 0.1512427,
-            tau2_s: 0.025466574,
+            tau2_s: 0.025466572,
             breakdown_deg: 20.72091,
-            steepness_per_deg: 0.25254172,
-            sideslip_gain: 0.77814156,
+            steepness_per_deg: 0.2525416,
+            sideslip_gain: 0.778142,
             clbeta_per_rad: -0.15061273,
             clp: -0.16954441,
             clpdot: -0.02779798,
-            clpp: 0.0089011565,
-            vortex_gain: 0.031231461,
-            bias: -4.9185937e-6,
+            clpp: 0.008901153,
+            vortex_gain: 0.031231457,
+            bias: -4.918594e-6,
             half_span_time_s: 0.022076923,
         },
         EgkParams {
             tau1_s: 0.1512427,
-            tau2_s: 0.025466574,
+            tau2_s: 0.025466572,
             breakdown_deg: 20.72091,
-            steepness_per_deg: 0.25254172,
-            sideslip_gain: 0.77814156,
+            steepness_per_deg: 0.2525416,
+            sideslip_gain: 0.778142,
             clbeta_per_rad: -0.15061273,
             clp: -0.16954441,
             clpdot: -0.02779798,
-            clpp: 0.0089011565,
-            vortex_gain: 0.031231461,
-            bias: -4.9185937e-6,
+            clpp: 0.008901153,
+            vortex_gain: 0.031231457,
+            bias: -4.918594e-6,
             half_span_time_s: 0.022076923,
         },
         EgkParams {
             tau1_s: 0.1512427,
-            tau2_s: 0.025466574,
+            tau2_s: 0.025466572,
             breakdown_deg: 20.72091,
-            steepness_per_deg: 0.25254172,
-            sideslip_gain: 0.77814156,
+            steepness_per_deg: 0.2525416,
+            sideslip_gain: 0.778142,
             clbeta_per_rad: -0.15061273,
             clp: -0.16954441,
             clpdot: -0.02779798,
-            clpp: 0.0089011565,
-            vortex_gain: 0.031231461,
-            bias: -4.9185937e-6,
+            clpp: 0.008901153,
+            vortex_gain: 0.031231457,
+            bias: -4.918594e-6,
             half_span_time_s: 0.022076923,
         },
     ],
@@ -593,24 +593,24 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
             [
                 -0.9818171,
                 1.3461843,
-                -0.0360102,
+                -0.036010202,
                 -0.67055875,
                 0.72633034,
                 -0.4248595,
-                -0.19489716,
+                -0.19489717,
                 -0.24980383,
                 1.3774686,
-                -0.003667142,
+                -0.0036671392,
                 -1.8921015,
                 0.6086057,
             ],
             [
                 -0.18032697,
                 0.5100747,
-                -0.060665864,
+                -0.06066587,
                 -0.56287676,
                 0.24202946,
-                0.008539049,
+                0.00853905,
                 -0.3403436,
                 0.0077976636,
                 0.61341876,
@@ -621,10 +621,10 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
             [
                 -0.18032697,
                 0.5100747,
-                -0.060665864,
+                -0.06066587,
                 -0.56287676,
                 0.24202946,
-                0.008539049,
+                0.00853905,
                 -0.3403436,
                 0.0077976636,
                 0.61341876,
@@ -635,10 +635,10 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
             [
                 -0.18032697,
                 0.5100747,
-                -0.060665864,
+                -0.06066587,
                 -0.56287676,
                 0.24202946,
-                0.008539049,
+                0.00853905,
                 -0.3403436,
                 0.0077976636,
                 0.61341876,
@@ -649,10 +649,10 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
             [
                 -0.18032697,
                 0.5100747,
-                -0.060665864,
+                -0.06066587,
                 -0.56287676,
                 0.24202946,
-                0.008539049,
+                0.00853905,
                 -0.3403436,
                 0.0077976636,
                 0.61341876,
@@ -663,10 +663,10 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
             [
                 -0.18032697,
                 0.5100747,
-                -0.060665864,
+                -0.06066587,
                 -0.56287676,
                 0.24202946,
-                0.008539049,
+                0.00853905,
                 -0.3403436,
                 0.0077976636,
                 0.61341876,
@@ -677,10 +677,10 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
             [
                 -0.18032697,
                 0.5100747,
-                -0.060665864,
+                -0.06066587,
                 -0.56287676,
                 0.24202946,
-                0.008539049,
+                0.00853905,
                 -0.3403436,
                 0.0077976636,
                 0.61341876,
@@ -690,7 +690,7 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
             ],
         ],
         cl_offset: [
-            -0.007468398,
+            -0.0074683987,
             -0.01830335,
             -0.007697369,
             -0.007697369,
@@ -757,21 +757,21 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
     ],
     coupling: SparseModel {
         terms: [
-            Term { coeff: 15.224485, monomial: Monomial { factors: [Var0, Var1, One], gate_mask: 40 } },
-            Term { coeff: -10.2119665, monomial: Monomial { factors: [Var0, Var3, One], gate_mask: 40 } },
-            Term { coeff: 0.3396441, monomial: Monomial { factors: [Var1, Var2, One], gate_mask: 40 } },
-            Term { coeff: 0.08388152, monomial: Monomial { factors: [Var1, Var5, One], gate_mask: 40 } },
-            Term { coeff: -2123.7444, monomial: Monomial { factors: [Var0, Var1, Var1], gate_mask: 40 } },
-            Term { coeff: 2255.4653, monomial: Monomial { factors: [Var0, Var1, Var3], gate_mask: 40 } },
-            Term { coeff: 15.537358, monomial: Monomial { factors: [Var0, Var2, Var3], gate_mask: 40 } },
-            Term { coeff: -386.03195, monomial: Monomial { factors: [Var1, Var1, Var1], gate_mask: 40 } },
-            Term { coeff: -91.62883, monomial: Monomial { factors: [Var1, Var1, Var2], gate_mask: 40 } },
-            Term { coeff: 1260.3688, monomial: Monomial { factors: [Var1, Var1, Var3], gate_mask: 40 } },
+            Term { coeff: 15.224497, monomial: Monomial { factors: [Var0, Var1, One], gate_mask: 40 } },
+            Term { coeff: -10.211983, monomial: Monomial { factors: [Var0, Var3, One], gate_mask: 40 } },
+            Term { coeff: 0.33964378, monomial: Monomial { factors: [Var1, Var2, One], gate_mask: 40 } },
+            Term { coeff: 0.08388126, monomial: Monomial { factors: [Var1, Var5, One], gate_mask: 40 } },
+            Term { coeff: -2123.7434, monomial: Monomial { factors: [Var0, Var1, Var1], gate_mask: 40 } },
+            Term { coeff: 2255.464, monomial: Monomial { factors: [Var0, Var1, Var3], gate_mask: 40 } },
+            Term { coeff: 15.537378, monomial: Monomial { factors: [Var0, Var2, Var3], gate_mask: 40 } },
+            Term { coeff: -386.036, monomial: Monomial { factors: [Var1, Var1, Var1], gate_mask: 40 } },
+            Term { coeff: -91.62881, monomial: Monomial { factors: [Var1, Var1, Var2], gate_mask: 40 } },
+            Term { coeff: 1260.3801, monomial: Monomial { factors: [Var1, Var1, Var3], gate_mask: 40 } },
             Term { coeff: -50.804432, monomial: Monomial { factors: [Var1, Var1, Var5], gate_mask: 40 } },
-            Term { coeff: -0.523995, monomial: Monomial { factors: [Var1, Var2, Var2], gate_mask: 40 } },
-            Term { coeff: 86.72395, monomial: Monomial { factors: [Var1, Var2, Var3], gate_mask: 40 } },
-            Term { coeff: -951.713, monomial: Monomial { factors: [Var1, Var3, Var3], gate_mask: 40 } },
-            Term { coeff: 45.10286, monomial: Monomial { factors: [Var1, Var3, Var5], gate_mask: 40 } },
+            Term { coeff: -0.52399087, monomial: Monomial { factors: [Var1, Var2, Var2], gate_mask: 40 } },
+            Term { coeff: 86.723816, monomial: Monomial { factors: [Var1, Var2, Var3], gate_mask: 40 } },
+            Term { coeff: -951.7204, monomial: Monomial { factors: [Var1, Var3, Var3], gate_mask: 40 } },
+            Term { coeff: 45.10289, monomial: Monomial { factors: [Var1, Var3, Var5], gate_mask: 40 } },
             Term { coeff: 0.0, monomial: Monomial { factors: [One, One, One], gate_mask: 0 } },
         ],
         n_terms: 15,
@@ -843,49 +843,49 @@ pub(super) fn plant_starboard(x: &[f32; MAX_VARS]) -> f32 {
 pub(super) fn coupling(x: &[f32; MAX_VARS]) -> f32 {
     let mut sum = -0.0f32;
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += 15.224485f32 * x[0] * x[1];
+        sum += 15.224497f32 * x[0] * x[1];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += -10.2119665f32 * x[0] * x[3];
+        sum += -10.211983f32 * x[0] * x[3];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += 0.3396441f32 * x[1] * x[2];
+        sum += 0.33964378f32 * x[1] * x[2];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += 0.08388152f32 * x[1] * x[5];
+        sum += 0.08388126f32 * x[1] * x[5];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += -2123.7444f32 * x[0] * x[1] * x[1];
+        sum += -2123.7434f32 * x[0] * x[1] * x[1];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += 2255.4653f32 * x[0] * x[1] * x[3];
+        sum += 2255.464f32 * x[0] * x[1] * x[3];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += 15.537358f32 * x[0] * x[2] * x[3];
+        sum += 15.537378f32 * x[0] * x[2] * x[3];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += -386.03195f32 * x[1] * x[1] * x[1];
+        sum += -386.036f32 * x[1] * x[1] * x[1];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += -91.62883f32 * x[1] * x[1] * x[2];
+        sum += -91.62881f32 * x[1] * x[1] * x[2];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += 1260.3688f32 * x[1] * x[1] * x[3];
+        sum += 1260.3801f32 * x[1] * x[1] * x[3];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
         sum += -50.804432f32 * x[1] * x[1] * x[5];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += -0.523995f32 * x[1] * x[2] * x[2];
+        sum += -0.52399087f32 * x[1] * x[2] * x[2];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += 86.72395f32 * x[1] * x[2] * x[3];
+        sum += 86.723816f32 * x[1] * x[2] * x[3];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += -951.713f32 * x[1] * x[3] * x[3];
+        sum += -951.7204f32 * x[1] * x[3] * x[3];
     }
     if x[3].abs() > 9.207697e-5f32 && x[5].abs() > 0.004363323f32 {
-        sum += 45.10286f32 * x[1] * x[3] * x[5];
+        sum += 45.10289f32 * x[1] * x[3] * x[5];
     }
     sum
 }

@@ -138,11 +138,11 @@ pub struct CoefficientSet {
 /// `y[k] = p y[k-1] + (1 - p) (u[k] - u[k-1]) / dt` with the pole `p = exp(-2 pi f_c dt)`
 /// computed on the host.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct RateFilter {
+pub struct RateFilter<R = f32> {
     /// Pole of the roll-rate differentiator.
-    pub rate_pole: f32,
+    pub rate_pole: R,
     /// Pole of the roll-acceleration differentiator.
-    pub accel_pole: f32,
+    pub accel_pole: R,
 }
 
 /// Parameters of the extended Goman-Khrabrov model at one angle of attack.
@@ -152,33 +152,33 @@ pub struct RateFilter {
 /// with `x0(a) = (1 - tanh(k (a - a*))) / 2`; the output map is
 /// `C_l = C_l,beta beta + C_l,p p_hat + C_l,pdot p_hat_dot + K_v (x_L - x_R) + C_l,0`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct EgkParams {
+pub struct EgkParams<R = f32> {
     /// Relaxation time, s (> 0).
-    pub tau1_s: f32,
+    pub tau1_s: R,
     /// Input delay, s (>= 0).
-    pub tau2_s: f32,
+    pub tau2_s: R,
     /// Breakdown incidence a*, deg.
-    pub breakdown_deg: f32,
+    pub breakdown_deg: R,
     /// Steepness k of the breakdown curve, per deg.
-    pub steepness_per_deg: f32,
+    pub steepness_per_deg: R,
     /// Sideslip-to-incidence gain kb of each half-wing.
-    pub sideslip_gain: f32,
+    pub sideslip_gain: R,
     /// Sideslip derivative C_l,beta, per rad.
-    pub clbeta_per_rad: f32,
+    pub clbeta_per_rad: R,
     /// Roll damping C_l,p per unit `p_hat = p b / (2 U)`.
-    pub clp: f32,
+    pub clp: R,
     /// Roll-acceleration derivative per unit `p_hat_dot = p_dot (b / (2 U))^2`.
-    pub clpdot: f32,
+    pub clpdot: R,
     /// Quadratic roll damping C_l,p|p| per unit `p_hat |p_hat|`: the rate damping of a slender
     /// wing grows faster than the rate (the `|phi_dot| phi_dot` term of Elzebda, Nayfeh & Mook,
     /// J. Aircraft 26(8), 1989; domain-models.md section 2.5).
-    pub clpp: f32,
+    pub clpp: R,
     /// Vortex-asymmetry gain K_v.
-    pub vortex_gain: f32,
+    pub vortex_gain: R,
     /// Constant offset C_l,0.
-    pub bias: f32,
+    pub bias: R,
     /// `b / (2 U)`, s: converts the roll rate to `p_hat`.
-    pub half_span_time_s: f32,
+    pub half_span_time_s: R,
 }
 
 /// The time-shifted (delay-embedded), reduced linear model of the 12 pressure coefficients
@@ -228,11 +228,11 @@ pub struct PressureModel<R = f32> {
 /// `C_l,p - C_l,eGK = e + v`; `C_l,roll = C_l,eGK + e_hat`. The pressure path carries the trend
 /// and bias, the eGK the fast content.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct FusionParams {
+pub struct FusionParams<R = f32> {
     /// Correlation of the eGK error from step to step, `exp(-dt / T_e)`.
-    pub rho: f32,
+    pub rho: R,
     /// Steady-state Kalman gain of the scalar filter.
-    pub gain: f32,
+    pub gain: R,
 }
 
 /// The plant model of one jet: the paper's SINDy difference equation (eq. 5),
@@ -339,6 +339,40 @@ impl<R: Real> PressureModel<R> {
             settle_steps: self.settle_steps,
             cl_weights: self.cl_weights.map(|row| row.map(to)),
             cl_offset: self.cl_offset.map(to),
+        }
+    }
+}
+
+impl<R: Real> EgkParams<R> {
+    /// The same parameters in another scalar: exact from f32 to f64, rounded to nearest the
+    /// other way.
+    #[must_use]
+    pub fn cast<S: Real>(&self) -> EgkParams<S> {
+        let to = |value: R| S::from_f64(value.to_f64());
+        EgkParams {
+            tau1_s: to(self.tau1_s),
+            tau2_s: to(self.tau2_s),
+            breakdown_deg: to(self.breakdown_deg),
+            steepness_per_deg: to(self.steepness_per_deg),
+            sideslip_gain: to(self.sideslip_gain),
+            clbeta_per_rad: to(self.clbeta_per_rad),
+            clp: to(self.clp),
+            clpdot: to(self.clpdot),
+            clpp: to(self.clpp),
+            vortex_gain: to(self.vortex_gain),
+            bias: to(self.bias),
+            half_span_time_s: to(self.half_span_time_s),
+        }
+    }
+}
+
+impl<R: Real> RateFilter<R> {
+    /// The same poles in another scalar (exact from f32 to f64).
+    #[must_use]
+    pub fn cast<S: Real>(&self) -> RateFilter<S> {
+        RateFilter {
+            rate_pole: S::from_f64(self.rate_pole.to_f64()),
+            accel_pole: S::from_f64(self.accel_pole.to_f64()),
         }
     }
 }

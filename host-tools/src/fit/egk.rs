@@ -2,10 +2,8 @@
 //! set per angle of attack of the schedule, by Levenberg-Marquardt on the simulation error
 //! (output error) of the roll moment.
 //!
-//! The f64 simulation here is the host reference of the core's eGK stage: the same equations
-//! in the same order (two flow states at the half-wings' incidences, exact zero-order-hold
-//! update with the input held over the step that ends at the sample, clamp to [0, 1], output
-//! map with damping and acceleration terms).
+//! The simulation is the core's eGK ([`estimator_core::egk::EgkState`]) in f64, at the angle
+//! of attack of the fit.
 //!
 //! Time constants and the breakdown steepness are fitted through their logarithms so that they
 //! stay positive; a weak Gaussian prior ([`super::prior`]: physics and the literature, scaled by
@@ -17,6 +15,7 @@
 use std::ops::Range;
 
 use estimator_core::coeffs::EgkParams;
+use estimator_core::egk::{EgkConstants, EgkInput, EgkRegressors, EgkState, output_map};
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{DMatrix, DVector, Dyn, Owned};
 use rayon::prelude::*;
@@ -70,30 +69,7 @@ pub struct EgkFit {
 /// Simulates the eGK roll moment over `signals` (all samples) in f64.
 #[must_use]
 pub fn simulate(params: &EgkParams, alpha_deg: f64, dt_s: f64, signals: &RunSignals) -> Vec<f64> {
-    simulate_f64(
-        &Coordinates::from_params(params).params(params.half_span_time_s),
-        alpha_deg,
-        dt_s,
-        signals,
-        signals.len(),
-    )
-}
-
-/// Parameters in f64 (the core's `EgkParams` fields).
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Params64 {
-    tau1_s: f64,
-    tau2_s: f64,
-    breakdown_deg: f64,
-    steepness_per_deg: f64,
-    sideslip_gain: f64,
-    clbeta_per_rad: f64,
-    clp: f64,
-    clpdot: f64,
-    clpp: f64,
-    vortex_gain: f64,
-    bias: f64,
-    half_span_time_s: f64,
+    simulate_f64(&params.cast(), alpha_deg, dt_s, signals, signals.len())
 }
 
 /// The fitted coordinates (logs of the positive parameters).
@@ -118,26 +94,9 @@ impl Coordinates {
         ])
     }
 
-    fn from_params(p: &EgkParams) -> Self {
-        let f = f64::from;
-        Self([
-            f(p.tau1_s).max(1e-4).ln(),
-            f(p.tau2_s).max(1e-5).ln(),
-            f(p.breakdown_deg),
-            f(p.steepness_per_deg).max(1e-4).ln(),
-            f(p.sideslip_gain),
-            f(p.clbeta_per_rad),
-            f(p.clp),
-            f(p.clpdot),
-            f(p.clpp),
-            f(p.vortex_gain),
-            f(p.bias),
-        ])
-    }
-
-    fn params(&self, half_span_time_s: f32) -> Params64 {
+    fn params(&self, half_span_time_s: f32) -> EgkParams<f64> {
         let c = &self.0;
-        Params64 {
+        EgkParams {
             tau1_s: c[0].exp(),
             tau2_s: c[1].exp(),
             breakdown_deg: c[2],
@@ -154,60 +113,37 @@ impl Coordinates {
     }
 
     fn to_core(self, half_span_time_s: f32) -> EgkParams {
-        let p = self.params(half_span_time_s);
-        EgkParams {
-            tau1_s: p.tau1_s as f32,
-            tau2_s: p.tau2_s as f32,
-            breakdown_deg: p.breakdown_deg as f32,
-            steepness_per_deg: p.steepness_per_deg as f32,
-            sideslip_gain: p.sideslip_gain as f32,
-            clbeta_per_rad: p.clbeta_per_rad as f32,
-            clp: p.clp as f32,
-            clpdot: p.clpdot as f32,
-            clpp: p.clpp as f32,
-            vortex_gain: p.vortex_gain as f32,
-            bias: p.bias as f32,
-            half_span_time_s,
-        }
+        EgkParams { half_span_time_s, ..self.params(half_span_time_s).cast() }
     }
 }
 
-/// The regressors of the eGK's output map at one sample: the map is linear in
-/// `(C_l,beta, C_l,p, C_l,pdot, K_v, C_l,0)` once the states are known.
-fn simulate_regressors(p: &Params64, alpha_deg: f64, dt_s: f64, signals: &RunSignals, end: usize) -> Vec<[f64; 6]> {
-    let alpha = alpha_deg.to_radians();
-    let (sin_a, tan_a) = (alpha.sin(), alpha.tan());
-    let decay = (-dt_s / p.tau1_s).exp();
-    let mut vortex = [0.0f64; 2];
-    let mut out = Vec::with_capacity(end);
-    for idx in 0..end.min(signals.len()) {
-        let (phi, phi_dot) = (signals.phi_rad[idx], signals.phi_dot_rad_s[idx]);
-        let sin_beta = (sin_a * phi.sin()).clamp(-1.0, 1.0);
-        let beta = sin_beta.asin();
-        let tan_cos = tan_a * phi.cos();
-        let alpha_b = tan_cos.atan();
-        let dbeta = sin_a * phi.cos() / (1.0 - sin_beta * sin_beta).sqrt().max(1e-6);
-        let dalpha_b = -tan_a * phi.sin() / (1.0 + tan_cos * tan_cos);
-        for (side, sign) in [(0usize, -1.0f64), (1, 1.0)] {
-            let incidence = (alpha_b + sign * p.sideslip_gain * beta).to_degrees();
-            let rate = ((dalpha_b + sign * p.sideslip_gain * dbeta) * phi_dot).to_degrees();
-            let target = 0.5 * (1.0 - (p.steepness_per_deg * (incidence - p.tau2_s * rate - p.breakdown_deg)).tanh());
-            let next = if idx == 0 { target } else { target + (vortex[side] - target) * decay };
-            vortex[side] = next.clamp(0.0, 1.0);
-        }
-        let p_hat = phi_dot * p.half_span_time_s;
-        let p_hat_dot = signals.phi_ddot_rad_s2[idx] * p.half_span_time_s * p.half_span_time_s;
-        out.push([beta, p_hat, p_hat_dot, p_hat * p_hat.abs(), vortex[0] - vortex[1], 1.0]);
-    }
-    out
-}
-
-fn simulate_f64(p: &Params64, alpha_deg: f64, dt_s: f64, signals: &RunSignals, end: usize) -> Vec<f64> {
-    let weights = [p.clbeta_per_rad, p.clp, p.clpdot, p.clpp, p.vortex_gain, p.bias];
-    simulate_regressors(p, alpha_deg, dt_s, signals, end)
-        .iter()
-        .map(|row| row.iter().zip(&weights).map(|(x, w)| x * w).sum())
+/// The regressors of the eGK's output map at every sample up to `end` (the core's
+/// [`EgkState`] in f64): the map is linear in `(C_l,beta, C_l,p, C_l,pdot, C_l,p|p|, K_v,
+/// C_l,0)` once the states are known.
+fn simulate_regressors(
+    p: &EgkParams<f64>,
+    alpha_deg: f64,
+    dt_s: f64,
+    signals: &RunSignals,
+    end: usize,
+) -> Vec<EgkRegressors<f64>> {
+    let constants = EgkConstants::new(*p, alpha_deg, dt_s);
+    let mut state = EgkState::new();
+    (0..end.min(signals.len()))
+        .map(|idx| {
+            let input = EgkInput {
+                phi_rad: signals.phi_rad[idx],
+                phi_dot_rad_s: signals.phi_dot_rad_s[idx],
+                phi_ddot_rad_s2: signals.phi_ddot_rad_s2[idx],
+                alpha_deg,
+            };
+            state.advance(&constants, &input).0
+        })
         .collect()
+}
+
+fn simulate_f64(p: &EgkParams<f64>, alpha_deg: f64, dt_s: f64, signals: &RunSignals, end: usize) -> Vec<f64> {
+    simulate_regressors(p, alpha_deg, dt_s, signals, end).iter().map(|row| output_map(p, row)).collect()
 }
 
 /// The Levenberg-Marquardt problem: simulation errors over every run, then the prior rows.

@@ -11,6 +11,7 @@
 use std::ops::Range;
 
 use estimator_core::coeffs::FusionParams;
+use estimator_core::fusion::Fusion;
 use serde::Serialize;
 
 /// Correlation times of the eGK error tried, s.
@@ -70,18 +71,16 @@ pub fn steady_gain(rho: f64, ratio: f64) -> f64 {
     prior / (prior + r)
 }
 
-/// Runs the core's fusion recursion in f64 and returns the fused estimate.
+/// Runs the core's fusion ([`estimator_core::fusion::Fusion`]) in f64 and returns the fused
+/// estimate; a non-finite pressure estimate is a step the pressure path measured nothing.
 #[must_use]
 pub fn fuse(rho: f64, gain: f64, cl_egk: &[f64], cl_pressure: &[f64]) -> Vec<f64> {
-    let mut error = 0.0;
+    let params = FusionParams { rho, gain };
+    let mut fusion = Fusion::new();
     cl_egk
         .iter()
         .zip(cl_pressure)
-        .map(|(&egk, &pressure)| {
-            let predicted = rho * error;
-            error = if pressure.is_finite() { predicted + gain * ((pressure - egk) - predicted) } else { predicted };
-            egk + error
-        })
+        .map(|(&egk, &pressure)| fusion.step(&params, egk, pressure.is_finite().then_some(pressure)).0)
         .collect()
 }
 

@@ -3,6 +3,7 @@
 //! acceleration (`estimator_core::rate`), and the angle of attack per sample.
 
 use estimator_core::coeffs::RateFilter;
+use estimator_core::rate::RateEstimator;
 use firmware_sim::dataset::Run;
 
 /// The kinematic and actuation signals of one run, sample by sample.
@@ -85,24 +86,18 @@ pub fn first_order_lag(values: &[f64], tau_s: f64, dt_s: f64) -> Vec<f64> {
         .collect()
 }
 
-/// The core's cascaded filtered differentiators in f64: `y[k] = p y[k-1] + (1 - p) (u[k] -
-/// u[k-1]) / dt`, first for the rate, then for the acceleration (estimator_core::rate).
+/// The core's cascaded filtered differentiators ([`RateEstimator`]) in f64: `y[k] = p y[k-1] +
+/// (1 - p) (u[k] - u[k-1]) / dt`, first for the rate, then for the acceleration. The angle must
+/// be finite (hold missing samples first, as the estimator does).
 #[must_use]
 pub fn differentiate(phi_rad: &[f64], filter: &RateFilter, dt_s: f64) -> (Vec<f64>, Vec<f64>) {
-    let (rate_pole, accel_pole) = (f64::from(filter.rate_pole), f64::from(filter.accel_pole));
-    let mut rate = Vec::with_capacity(phi_rad.len());
-    let mut accel = Vec::with_capacity(phi_rad.len());
-    let (mut last_phi, mut phi_dot, mut last_phi_dot, mut phi_ddot) =
-        (phi_rad.first().copied().unwrap_or(0.0), 0.0, 0.0, 0.0);
-    for &phi in phi_rad {
-        phi_dot = rate_pole * phi_dot + (1.0 - rate_pole) * (phi - last_phi) / dt_s;
-        phi_ddot = accel_pole * phi_ddot + (1.0 - accel_pole) * (phi_dot - last_phi_dot) / dt_s;
-        last_phi = phi;
-        last_phi_dot = phi_dot;
-        rate.push(phi_dot);
-        accel.push(phi_ddot);
-    }
-    (rate, accel)
+    let filter = filter.cast::<f64>();
+    let mut rates = RateEstimator::new();
+    phi_rad
+        .iter()
+        .map(|&phi| rates.step(&filter, 1.0 / dt_s, phi))
+        .map(|r| (r.phi_dot_rad_s, r.phi_ddot_rad_s2))
+        .unzip()
 }
 
 /// Zero-phase low-pass: a second-order Butterworth filter (bilinear transform with
