@@ -26,6 +26,7 @@ pub mod regression;
 pub mod report;
 pub mod result;
 pub mod sensor;
+pub mod signature;
 pub mod streams;
 
 use std::collections::BTreeMap;
@@ -40,6 +41,11 @@ use attribution::Profiled;
 use candidates::Context;
 use result::{Confounding, Diagnosis, EffectResult, Gap, Unexplained, Verdict, Where, finite_or_null};
 use sensor::{ParamValue, SensorFinding};
+use signature::kind_alpha_key;
+pub use signature::{
+    DEFAULT_SIGNATURE_JSON, SIGNATURE_FILE, Signature, SignatureFileError, default_signature, signature,
+    signature_beside,
+};
 
 /// Smallest effect the diagnosis names, as a ratio of its RMS to the stream's noise RMS: a
 /// smaller one is at the noise floor by definition. Its square is the explained mean square a
@@ -75,82 +81,6 @@ pub struct DiagnoseConfig {
     /// of every comparison, so evidence counts only beyond it. `None`: no signature (every
     /// candidate starts from zero).
     pub signature: Option<Signature>,
-}
-
-/// What the candidates and the probe explain, and the gap per kind of run, in noise variances,
-/// when the sim is compared with data it should match: the floor below which a gap is the
-/// sim's own structural error, not an effect. `fit` writes it beside the model
-/// ([`SIGNATURE_FILE`]).
-#[derive(Debug, Clone, PartialEq, Default, serde::Serialize, serde::Deserialize)]
-pub struct Signature {
-    /// Per candidate (sensor candidates keyed `name:channel`), explained mean square over the
-    /// noise variance.
-    pub explained_to_noise: BTreeMap<String, f64>,
-    /// What each group of the structure probe explains of the residual, over the noise
-    /// variance.
-    pub probe_to_noise: BTreeMap<String, f64>,
-    /// Gap beyond noise per kind of run (mean square over the noise variance), keyed by the
-    /// kind (`roll`) and by kind and angle of attack (`roll@20`).
-    pub gap_to_noise_by_kind: BTreeMap<String, f64>,
-    /// The time constant that best aligns the taps with the balance moment on data the sim
-    /// matches, s ([`pressure_lag`]): the rig's tubing and the sim's own map; a lag counts
-    /// beyond it.
-    #[serde(default)]
-    pub pressure_alignment_s: Option<f64>,
-}
-
-/// File name of a model's signature in its folder.
-pub const SIGNATURE_FILE: &str = "diagnosis-signature.json";
-
-/// The built-in model's signature on the default synthetic campaign (models/default, written by
-/// `fit`): the floor used when a diagnosis has no signature of its own sim (nominal models
-/// fitted on the data itself, or a model folder without one). It is the structural error of
-/// this model family on a tunnel like the synthetic one, so on other rigs it is a guess; the
-/// report says so.
-pub const DEFAULT_SIGNATURE_JSON: &str = include_str!("../../../models/default/diagnosis-signature.json");
-
-/// [`DEFAULT_SIGNATURE_JSON`], parsed (an empty signature if it ever fails to parse).
-#[must_use]
-pub fn default_signature() -> Signature {
-    serde_json::from_str(DEFAULT_SIGNATURE_JSON).unwrap_or_default()
-}
-
-impl Signature {
-    /// What a candidate removes out of sample on data the sim matches, in noise variances: the
-    /// floor its evidence must clear (never below zero: a candidate that predicts worse than
-    /// nothing there sets no floor).
-    fn of(&self, key: &str) -> f64 {
-        self.explained_to_noise.get(key).copied().unwrap_or(0.0).max(0.0)
-    }
-
-    fn probe_of(&self, group: &str) -> f64 {
-        self.probe_to_noise.get(group).copied().unwrap_or(0.0).max(0.0)
-    }
-
-    /// The sim's own gap on runs of this kind at this angle of attack (the kind's mean when the
-    /// angle is not in the signature).
-    fn gap_of(&self, kind: &str, alpha_deg: f64) -> f64 {
-        self.gap_to_noise_by_kind
-            .get(&kind_alpha_key(kind, alpha_deg))
-            .or_else(|| self.gap_to_noise_by_kind.get(kind))
-            .copied()
-            .unwrap_or(0.0)
-    }
-}
-
-fn kind_alpha_key(kind: &str, alpha_deg: f64) -> String {
-    format!("{kind}@{alpha_deg}")
-}
-
-/// The signature of `set` on `dataset` (the data it was fitted on): the recording diagnosed
-/// with the same split and the same parts as any other, so that every candidate's floor is
-/// measured with the same amount of data its evidence will be (taken on the held-out part
-/// alone, the candidates were fitted on a fifth of the samples and the floors came out low: the
-/// fit's own recording then named a balance mode).
-pub fn signature(dataset: &Dataset, set: &CoefficientSet, split: Split) -> Result<Signature, DiagnoseError> {
-    let config = DiagnoseConfig { split, signature: None };
-    let (diagnosis, _) = diagnose(dataset, Some((set, "signature".into())), &config, &|_| {})?;
-    Ok(diagnosis.signature)
 }
 
 /// Why a diagnosis failed.

@@ -40,11 +40,19 @@ pub struct EvaluationConfig {
     pub noise_levels: Vec<f64>,
     /// Seed of that noise.
     pub seed: u64,
+    /// Standard deviation of the balance noise of the figure that shows the operator refitted
+    /// on noisy data (the paper's robustness figure uses 0.001).
+    pub figure_noise: f64,
 }
 
 impl Default for EvaluationConfig {
     fn default() -> Self {
-        Self { split: Split::default(), noise_levels: vec![0.00025, 0.0005, 0.001, 0.002, 0.004], seed: 1 }
+        Self {
+            split: Split::default(),
+            noise_levels: vec![0.00025, 0.0005, 0.001, 0.002, 0.004],
+            seed: 1,
+            figure_noise: 0.001,
+        }
     }
 }
 

@@ -1,0 +1,152 @@
+//! The sim's own signature: what every candidate and the structure probe explain, and the gap
+//! per kind of run, when the sim is diagnosed against the data it was fitted on. Evidence
+//! counts only beyond it.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use estimator_core::CoefficientSet;
+use firmware_sim::dataset::Dataset;
+
+use super::{DiagnoseConfig, DiagnoseError, diagnose};
+use crate::fit::split::Split;
+
+/// What the candidates and the probe explain, and the gap per kind of run, in noise variances,
+/// when the sim is compared with data it should match: the floor below which a gap is the
+/// sim's own structural error, not an effect. `fit` writes it beside the model
+/// ([`SIGNATURE_FILE`]).
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize, serde::Deserialize)]
+pub struct Signature {
+    /// Per candidate (sensor candidates keyed `name:channel`), explained mean square over the
+    /// noise variance.
+    pub explained_to_noise: BTreeMap<String, f64>,
+    /// What each group of the structure probe explains of the residual, over the noise
+    /// variance.
+    pub probe_to_noise: BTreeMap<String, f64>,
+    /// Gap beyond noise per kind of run (mean square over the noise variance), keyed by the
+    /// kind (`roll`) and by kind and angle of attack (`roll@20`).
+    pub gap_to_noise_by_kind: BTreeMap<String, f64>,
+    /// The time constant that best aligns the taps with the balance moment on data the sim
+    /// matches, s ([`pressure_lag`]): the rig's tubing and the sim's own map; a lag counts
+    /// beyond it.
+    #[serde(default)]
+    pub pressure_alignment_s: Option<f64>,
+}
+
+/// File name of a model's signature in its folder.
+pub const SIGNATURE_FILE: &str = "diagnosis-signature.json";
+
+/// The built-in model's signature on the default synthetic campaign (models/default, written by
+/// `fit`): the floor used when a diagnosis has no signature of its own sim (nominal models
+/// fitted on the data itself, or a model folder without one). It is the structural error of
+/// this model family on a tunnel like the synthetic one, so on other rigs it is a guess; the
+/// report says so.
+pub const DEFAULT_SIGNATURE_JSON: &str = include_str!("../../../models/default/diagnosis-signature.json");
+
+/// [`DEFAULT_SIGNATURE_JSON`], parsed (an empty signature if it ever fails to parse).
+#[must_use]
+pub fn default_signature() -> Signature {
+    serde_json::from_str(DEFAULT_SIGNATURE_JSON).unwrap_or_default()
+}
+
+impl Signature {
+    /// What a candidate removes out of sample on data the sim matches, in noise variances: the
+    /// floor its evidence must clear (never below zero: a candidate that predicts worse than
+    /// nothing there sets no floor).
+    pub(super) fn of(&self, key: &str) -> f64 {
+        self.explained_to_noise.get(key).copied().unwrap_or(0.0).max(0.0)
+    }
+
+    pub(super) fn probe_of(&self, group: &str) -> f64 {
+        self.probe_to_noise.get(group).copied().unwrap_or(0.0).max(0.0)
+    }
+
+    /// The sim's own gap on runs of this kind at this angle of attack (the kind's mean when the
+    /// angle is not in the signature).
+    pub(super) fn gap_of(&self, kind: &str, alpha_deg: f64) -> f64 {
+        self.gap_to_noise_by_kind
+            .get(&kind_alpha_key(kind, alpha_deg))
+            .or_else(|| self.gap_to_noise_by_kind.get(kind))
+            .copied()
+            .unwrap_or(0.0)
+    }
+}
+
+pub(super) fn kind_alpha_key(kind: &str, alpha_deg: f64) -> String {
+    format!("{kind}@{alpha_deg}")
+}
+
+/// The signature of `set` on `dataset` (the data it was fitted on): the recording diagnosed
+/// with the same split and the same parts as any other, so that every candidate's floor is
+/// measured with the same amount of data its evidence will be (taken on the held-out part
+/// alone, the candidates were fitted on a fifth of the samples and the floors came out low: the
+/// fit's own recording then named a balance mode).
+pub fn signature(dataset: &Dataset, set: &CoefficientSet, split: Split) -> Result<Signature, DiagnoseError> {
+    let config = DiagnoseConfig { split, signature: None };
+    let (diagnosis, _) = diagnose(dataset, Some((set, "signature".into())), &config, &|_| {})?;
+    Ok(diagnosis.signature)
+}
+
+/// Why a model's signature file could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum SignatureFileError {
+    /// The file exists but could not be read.
+    #[error("{file}: {source}")]
+    Read {
+        /// The signature file.
+        file: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The file is not a signature.
+    #[error("{file}: not a diagnosis signature: {source}")]
+    Parse {
+        /// The signature file.
+        file: PathBuf,
+        /// What the parser found.
+        source: serde_json::Error,
+    },
+}
+
+/// The signature `fit` wrote beside a model (`model` is its folder or its `model.bin`);
+/// `None` when there is none. Only a missing file is `None`: one that cannot be read or parsed
+/// is an error, so a broken signature never silently becomes the built-in model's.
+///
+/// # Errors
+///
+/// [`SignatureFileError`] when the file exists but cannot be read or is not a signature.
+pub fn signature_beside(model: &Path) -> Result<Option<Signature>, SignatureFileError> {
+    let folder =
+        if model.is_dir() { model.to_path_buf() } else { model.parent().map(PathBuf::from).unwrap_or_default() };
+    let file = folder.join(SIGNATURE_FILE);
+    let text = match std::fs::read_to_string(&file) {
+        Ok(text) => text,
+        Err(error) if error.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(source) => return Err(SignatureFileError::Read { file, source }),
+    };
+    serde_json::from_str(&text).map(Some).map_err(|source| SignatureFileError::Parse { file, source })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A folder without a signature has none; a signature beside `model.bin` is read; a
+    /// malformed one and an unreadable one (a folder in its place) are errors naming the file.
+    #[test]
+    fn a_signature_beside_the_model_is_read_and_a_broken_one_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let model = dir.path().join("model.bin");
+        assert!(signature_beside(dir.path()).unwrap().is_none());
+        let signature = default_signature();
+        std::fs::write(dir.path().join(SIGNATURE_FILE), serde_json::to_string(&signature).unwrap()).unwrap();
+        assert_eq!(signature_beside(&model).unwrap(), Some(signature.clone()));
+        assert_eq!(signature_beside(dir.path()).unwrap(), Some(signature));
+        std::fs::write(dir.path().join(SIGNATURE_FILE), "{ not json").unwrap();
+        let error = signature_beside(dir.path()).unwrap_err();
+        assert!(matches!(error, SignatureFileError::Parse { .. }) && error.to_string().contains(SIGNATURE_FILE));
+        std::fs::remove_file(dir.path().join(SIGNATURE_FILE)).unwrap();
+        std::fs::create_dir(dir.path().join(SIGNATURE_FILE)).unwrap();
+        assert!(matches!(signature_beside(dir.path()), Err(SignatureFileError::Read { .. })));
+    }
+}
