@@ -362,7 +362,7 @@ pub fn validate(set: &CoefficientSet) -> Result<(), BlobError> {
     ensure(modes_beyond_rank_are_zero(&set.pressure), "pressure modes beyond rank must be zero")?;
     ensure(set.pressure.gate_sigma > 0.0, "pressure.gate_sigma must be > 0")?;
     // Finite tables can still overflow in the constants the filter derives from them (found by
-    // `host-tools fuzz --target blob`: a weight of 1e30 times a mode shape of 1e23).
+    // `cargo xtask fuzz --target blob`: a weight of 1e30 times a mode shape of 1e23).
     ensure(
         crate::pressure::PressureFilter::new(&set.pressure).derived_constants_are_finite(),
         "pressure tables overflow: the roll-moment map, its constant or a gate is not finite",
@@ -1030,7 +1030,7 @@ mod tests {
         assert_eq!(decode(&blob), Err(BlobError::Invalid("pressure.gain is not finite")));
     }
 
-    /// Issue 8 (reliability; the fuzzer of `host-tools fuzz --target blob` found it): finite
+    /// Issue 8 (reliability; the fuzzer of `cargo xtask fuzz --target blob` found it): finite
     /// pressure tables whose product overflows passed validation, and the step then returned a
     /// NaN `cl_pressure`.
     #[test]

@@ -214,7 +214,7 @@ impl Scenario {
     }
 
     /// Parses the bytes of a scenario file, named `path` in errors, as [`Scenario::from_file`]
-    /// does: the fuzzer's entry point (`host-tools fuzz --target scenario`).
+    /// does: the fuzzer's entry point (`cargo xtask fuzz --target scenario`).
     pub fn from_bytes(path: &str, bytes: &[u8]) -> Result<Self, ScenarioError> {
         let text = std::str::from_utf8(bytes).map_err(|err| ScenarioError::Io {
             path: path.to_owned(),

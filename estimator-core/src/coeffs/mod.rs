@@ -69,7 +69,7 @@ pub const DEMAND_SLOTS: usize = 64;
 /// held-out RMS error of `C_l` is 0.3 % of the span. An estimate beyond the margin, 1.5 times
 /// the measured span from one end to the other, is a moment the wing was never seen to make:
 /// the soak's garbage input drove `C_l` to 0.39 before the envelope, 3.7 spans
-/// (`host-tools soak --steps 10000000 --seed 3`).
+/// (`cargo xtask soak --steps 10000000 --seed 3`).
 pub const ENVELOPE_MARGIN: f32 = 0.25;
 
 /// Index of each plant variable.

@@ -112,7 +112,7 @@ pub fn load_run(path: &Path, meta: RunMeta, tunnel: &Tunnel, wing: &Wing) -> Res
 }
 
 /// The bytes of a manifest, read from `file` (named in errors), as [`load_dataset`] parses them:
-/// the fuzzer's entry point (`host-tools fuzz --target manifest`).
+/// the fuzzer's entry point (`cargo xtask fuzz --target manifest`).
 ///
 /// # Errors
 /// [`DatasetError::Io`] for text that is not UTF-8, and every error of the manifest's syntax,
@@ -125,7 +125,7 @@ pub fn parse_manifest_bytes(file: &Path, bytes: &[u8]) -> Result<Manifest, Datas
 }
 
 /// The bytes of a run file, read from `path` (named in errors), as [`load_run`] parses them:
-/// the fuzzer's entry point (`host-tools fuzz --target dataset-csv`).
+/// the fuzzer's entry point (`cargo xtask fuzz --target dataset-csv`).
 ///
 /// # Errors
 /// As [`load_run`], except [`DatasetError::Io`].

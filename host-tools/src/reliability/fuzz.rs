@@ -1,4 +1,4 @@
-//! A seeded, structure-aware mutation fuzzer for every loader (`host-tools fuzz`): the dataset's
+//! A seeded, structure-aware mutation fuzzer for every loader (`cargo xtask fuzz`): the dataset's
 //! run files (CSV) and manifest, the coefficient blob, and scenario files.
 //!
 //! cargo-fuzz needs a nightly toolchain and libFuzzer, which the pinned stable toolchain of this

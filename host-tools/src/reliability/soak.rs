@@ -1,4 +1,4 @@
-//! The soak run (`host-tools soak`): the estimator stepped for a long time on noisy synthetic
+//! The soak run (`cargo xtask soak`): the estimator stepped for a long time on noisy synthetic
 //! input with random faults (NaN, infinities, huge values, out-of-range angles, stuck, biased and
 //! spiking pressure channels, dropped samples), next to a reference estimator stepped on the
 //! same input without the faults. Every estimate must stay finite at every step, and the

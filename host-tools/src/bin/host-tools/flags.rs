@@ -44,10 +44,6 @@ pub(crate) enum Command {
     ValidateDiagnosis(ValidateArgs),
     /// Inject sensor faults into a dataset's held-out part: detection latency and error per fault.
     Faults(FaultsArgs),
-    /// Fuzz a loader with seeded, structure-aware mutations of valid inputs.
-    Fuzz(FuzzArgs),
-    /// Step the estimator for a long time on noisy input with random faults.
-    Soak(SoakArgs),
 }
 
 #[derive(Debug, clap::Args)]
@@ -319,40 +315,4 @@ pub(crate) struct FaultsArgs {
     /// Share of every run, at its end, that is held out (must match the fit's).
     #[arg(long = "holdout-fraction", default_value_t = host_tools::fit::split::DEFAULT_HOLDOUT_FRACTION)]
     pub(crate) holdout_fraction: f64,
-}
-
-#[derive(Debug, clap::Args)]
-pub(crate) struct FuzzArgs {
-    /// Loader to fuzz (repeatable): dataset-csv, manifest, blob, scenario; default: all.
-    #[arg(long = "target")]
-    pub(crate) targets: Vec<host_tools::reliability::fuzz::Target>,
-    /// Mutated inputs per target.
-    #[arg(long, default_value_t = 1_000_000)]
-    pub(crate) execs: u64,
-    /// Seed of the mutations.
-    #[arg(long, default_value_t = 1)]
-    pub(crate) seed: u64,
-    /// An input slower than this is a finding, ms.
-    #[arg(long = "time-limit-ms", default_value_t = 1000)]
-    pub(crate) time_limit_ms: u64,
-    /// Only write the valid seed inputs of every target into DIR/TARGET/ (the corpus for the
-    /// cargo-fuzz targets in fuzz/), then stop.
-    #[arg(long = "write-seeds", value_name = "DIR")]
-    pub(crate) write_seeds: Option<PathBuf>,
-}
-
-#[derive(Debug, clap::Args)]
-pub(crate) struct SoakArgs {
-    /// Steps in all.
-    #[arg(long, default_value_t = 100_000_000)]
-    pub(crate) steps: u64,
-    /// Seed of the input, the noise and the faults.
-    #[arg(long, default_value_t = 1)]
-    pub(crate) seed: u64,
-    /// Independent runs the steps are split into, run in parallel (default: one per core).
-    #[arg(long)]
-    pub(crate) streams: Option<u64>,
-    /// Model folder or model.bin (default: the built-in tables).
-    #[arg(long)]
-    pub(crate) model: Option<PathBuf>,
 }

@@ -26,8 +26,6 @@ fn main() -> ExitCode {
         Command::Diagnose(args) => diagnosis::diagnose(args),
         Command::ValidateDiagnosis(args) => diagnosis::validate_diagnosis(args),
         Command::Faults(args) => reliability::faults(args),
-        Command::Fuzz(args) => reliability::fuzz(args),
-        Command::Soak(args) => reliability::soak(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
