@@ -139,11 +139,11 @@ pub enum BlobRejection {
     },
     /// A set was loaded since boot and the estimator flies it: reset the board to load another.
     AlreadyLoaded,
-    /// The blob's own checks failed (`estimator_core::blob::BlobError`, by name).
+    /// The blob's own checks failed (`estimator_core::blob::DecodeError`, by name).
     Blob(BlobFault),
 }
 
-/// The blob check that failed, as `estimator_core::blob::BlobError` names it.
+/// The blob check that failed, as `estimator_core::blob::DecodeError` names it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum BlobFault {
     /// Shorter than its header.
@@ -176,13 +176,11 @@ pub enum BlobFault {
     TrailingPayload,
     /// A value is out of range.
     Invalid,
-    /// An encoding error (not produced by a decode).
-    Other,
 }
 
-impl From<estimator_core::blob::BlobError> for BlobFault {
-    fn from(error: estimator_core::blob::BlobError) -> Self {
-        use estimator_core::blob::BlobError as E;
+impl From<estimator_core::blob::DecodeError> for BlobFault {
+    fn from(error: estimator_core::blob::DecodeError) -> Self {
+        use estimator_core::blob::DecodeError as E;
         match error {
             E::TooShort { .. } => Self::TooShort,
             E::BadMagic { .. } => Self::BadMagic,
@@ -194,7 +192,6 @@ impl From<estimator_core::blob::BlobError> for BlobFault {
             E::Decode(_) => Self::Decode,
             E::TrailingPayload { .. } => Self::TrailingPayload,
             E::Invalid(_) => Self::Invalid,
-            E::BufferTooSmall { .. } | E::Encode => Self::Other,
         }
     }
 }

@@ -19,7 +19,7 @@ use estimator_core::CoefficientSet;
 pub enum CodegenError {
     /// The coefficient set does not pass the blob's validation (non-finite values, bad sizes).
     #[error("the coefficient set is not valid: {0}")]
-    Invalid(estimator_core::blob::BlobError),
+    Invalid(estimator_core::blob::InvalidSet),
     /// rustfmt could not be run or failed.
     #[error("rustfmt: {0}")]
     Rustfmt(String),

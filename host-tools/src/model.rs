@@ -8,7 +8,7 @@
 use std::path::{Path, PathBuf};
 
 use estimator_core::CoefficientSet;
-use estimator_core::blob::{self, BlobError, MAX_BLOB_LEN};
+use estimator_core::blob::{self, DecodeError, EncodeError, InvalidSet, MAX_BLOB_LEN};
 
 /// The blob's file name in a model folder.
 pub const BLOB_FILE: &str = "model.bin";
@@ -30,7 +30,15 @@ pub enum ModelError {
         /// The file.
         path: PathBuf,
         /// Why.
-        error: BlobError,
+        error: DecodeError,
+    },
+    /// The set could not be written as a blob.
+    #[error("{path}: the coefficient set cannot be written as a blob: {error}")]
+    ToBlob {
+        /// The file it was to be written to.
+        path: PathBuf,
+        /// Why.
+        error: ToBlobError,
     },
     /// Writing the folder failed.
     #[error(transparent)]
@@ -66,8 +74,23 @@ pub fn load(model: Option<&Path>) -> Result<(CoefficientSet, ModelSource), Model
     Ok((set, ModelSource::File(file)))
 }
 
+/// Why a coefficient set could not become blob bytes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum ToBlobError {
+    /// The set is not usable by the estimator: it is not written.
+    #[error(transparent)]
+    Invalid(#[from] InvalidSet),
+    /// The blob could not be written.
+    #[error(transparent)]
+    Encode(#[from] EncodeError),
+}
+
 /// The blob bytes of a (valid) coefficient set.
-pub fn encode(set: &CoefficientSet) -> Result<Vec<u8>, BlobError> {
+///
+/// # Errors
+///
+/// [`ToBlobError`] when the set is not valid or does not serialize.
+pub fn encode(set: &CoefficientSet) -> Result<Vec<u8>, ToBlobError> {
     blob::validate(set)?;
     let mut buffer = vec![0u8; MAX_BLOB_LEN];
     let length = blob::encode(set, &mut buffer)?;

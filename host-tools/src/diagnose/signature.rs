@@ -27,7 +27,7 @@ pub struct Signature {
     /// kind (`roll`) and by kind and angle of attack (`roll@20`).
     pub gap_to_noise_by_kind: BTreeMap<String, f64>,
     /// The time constant that best aligns the taps with the balance moment on data the sim
-    /// matches, s ([`pressure_lag`]): the rig's tubing and the sim's own map; a lag counts
+    /// matches, s ([`super::pressure_lag`]): the rig's tubing and the sim's own map; a lag counts
     /// beyond it.
     #[serde(default)]
     pub pressure_alignment_s: Option<f64>,

@@ -34,7 +34,7 @@ pub fn write_model_folder(
 ) -> Result<(), ModelError> {
     let signature = signature.map(|s| serde_json::to_string_pretty(s).unwrap_or_default());
     let blob =
-        crate::model::encode(&outcome.set).map_err(|error| ModelError::Blob { path: dir.join(BLOB_FILE), error })?;
+        crate::model::encode(&outcome.set).map_err(|error| ModelError::ToBlob { path: dir.join(BLOB_FILE), error })?;
     let json = ModelJson { dataset, report: &outcome.report, coefficients: format!("{:?}", outcome.set) };
     let json = serde_json::to_string_pretty(&json).unwrap_or_else(|error| format!("{{\"error\": \"{error}\"}}"));
     let card = model_card(&outcome.set, &outcome.report, dataset);

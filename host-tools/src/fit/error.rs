@@ -52,7 +52,7 @@ pub enum FitError {
     Pressure(#[from] PressureFitError),
     /// The fitted set does not pass the estimator's validation.
     #[error("the fitted coefficient set is not valid: {0}")]
-    Invalid(estimator_core::blob::BlobError),
+    Invalid(estimator_core::blob::InvalidSet),
     /// A bug: an invariant of the fit did not hold.
     #[error("internal error: {0}")]
     Internal(&'static str),
