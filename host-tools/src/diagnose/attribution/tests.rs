@@ -1,0 +1,499 @@
+//! Tests of [`super`]: the attribution module on synthetic runs with known answers.
+
+use std::collections::BTreeMap;
+
+use rand::SeedableRng;
+use rand_distr::{Distribution, Normal};
+
+use super::*;
+use crate::diagnose::candidates::{GravityTare, InertialTare, test_context};
+use crate::diagnose::result::Verdict;
+use crate::diagnose::sensor::{ParamValue, SensorFinding};
+use crate::diagnose::streams::synthetic_run;
+use crate::diagnose::{
+    BalanceAttribution, Decision, GapSummary, MIN_DELTA_BIC, MIN_EFFECT_TO_NOISE, ProbeResult, SensorAttribution,
+    Signature, Streams,
+};
+
+const HZ: f64 = 1000.0;
+const N: usize = 5000;
+
+/// The smallest excess a named effect needs, in noise variances.
+const MIN_RATIO: f64 = MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE;
+
+/// A run of `N` samples whose balance residual is `residual(t_s, noise)`, with a seeded
+/// Gaussian noise of `noise_std`, the wing rolling `0.5 sin(2 pi 0.7 t)` rad.
+fn rolling(seed: u64, noise_std: f64, residual: impl Fn(f64, f64, f64) -> f64) -> RunStreams {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let normal = Normal::new(0.0, noise_std).expect("a valid deviation");
+    let mut run = synthetic_run(HZ, vec![vec![0.0; N]], vec![vec![0.0; N]]);
+    let w = std::f64::consts::TAU * 0.7;
+    run.phi_rad = run.t_s.iter().map(|t| 0.5 * (w * t).sin()).collect();
+    run.phi_dot_rad_s = run.t_s.iter().map(|t| 0.5 * w * (w * t).cos()).collect();
+    run.phi_ddot_rad_s2 = run.t_s.iter().map(|t| 40.0 * (std::f64::consts::TAU * 1.5 * t).sin()).collect();
+    run.residual = (0..N).map(|i| residual(run.t_s[i], run.phi_rad[i], normal.sample(&mut rng))).collect();
+    run
+}
+
+/// Streams over `runs` with a balance noise variance of `noise_var` (1: every excess below
+/// is the selection part's mean square removed).
+fn streams(runs: Vec<RunStreams>, noise_var: f64) -> Streams {
+    let residuals = runs.iter().map(|run| run.residual.clone()).collect();
+    Streams {
+        runs,
+        residuals,
+        noise_var,
+        autocorrelation_time: 1.0,
+        set: estimator_core::coeffs::BUILT_IN,
+        moment_scale_nm: 2.0,
+        half_span_time_s: 0.01,
+        resonance_min_hz: 4.0,
+    }
+}
+
+/// A profiled candidate that removes `removed` of mean square on the selection part
+/// (1 + removed -> 1; exact in binary for the values used) with evidence `delta_bic`.
+fn profiled(candidate: Candidate, removed: f64, delta_bic: f64) -> Profiled {
+    Profiled {
+        candidate,
+        form: Form { shape: candidates::Shape::Fixed, per_alpha: false },
+        // Explains `removed` per training sample, and the selection part confirms it whole.
+        fit: Fit {
+            beta: vec![1.0],
+            ssr_base: 1.0 + 100.0 * removed,
+            ssr: 1.0,
+            n: 100,
+            n_touched: 100,
+            ssr_base_touched: 1.0 + 100.0 * removed,
+            touched: vec![true],
+        },
+        delta_bic,
+        profile: Vec::new(),
+        selection: HeldoutGap { mse_before: 1.0 + removed, mse_after: 1.0, noise_var: 0.0, n: 100, floor_var: 0.0 },
+        heldout: HeldoutGap::EMPTY,
+        selection_slope: Slope { value: 1.0, standard_error: 0.1 },
+        active_share: 1.0,
+        selection_active_share: 1.0,
+    }
+}
+
+/// A sensor finding that removes `removed` noise variances on the selection part.
+fn sensor_finding(removed: f64) -> SensorFinding {
+    SensorFinding {
+        effect: firmware_sim::effect::Effect::PressureFault,
+        params: vec![("mode".into(), ParamValue::Text("bias".into()))],
+        channel: Some("cp04".into()),
+        channels: vec!["cp04".into()],
+        explained: removed,
+        noise_var: 1.0,
+        delta_bic: 100.0,
+        heldout: HeldoutGap::EMPTY,
+        selection: HeldoutGap { mse_before: 1.0 + removed, mse_after: 1.0, noise_var: 0.0, n: 100, floor_var: 0.0 },
+        evidence: String::new(),
+    }
+}
+
+fn balance(first_round: Vec<Profiled>, named: Vec<Profiled>) -> BalanceAttribution {
+    BalanceAttribution { first_round, named, remainder: Vec::new() }
+}
+
+fn probe(structure: f64, remainder_structured: bool) -> ProbeResult {
+    ProbeResult { base: BTreeMap::new(), structure, remainder_structured }
+}
+
+fn no_sensor() -> SensorAttribution {
+    SensorAttribution { findings: Vec::new(), named: None }
+}
+
+/// A gap summary with nothing beyond the sim's own scatter, or everything.
+fn gaps(beyond_scatter: bool) -> GapSummary {
+    GapSummary {
+        heldout: HeldoutGap { mse_before: 0.0, mse_after: 0.0, noise_var: 0.0, n: 0, floor_var: 0.0 },
+        by_kind: BTreeMap::new(),
+        excess_runs: Vec::new(),
+        beyond_scatter,
+    }
+}
+
+fn decide(balance: &BalanceAttribution, probe: &ProbeResult, sensor: &SensorAttribution) -> Decision {
+    Decision::make(&streams(Vec::new(), 1.0), balance, probe, sensor, &gaps(false), &Signature::default())
+}
+
+/// The Legendre polynomials against their closed forms (degrees 0 to 5) and `P_n(1) = 1`,
+/// `P_n(-1) = (-1)^n`.
+#[test]
+fn legendre_matches_the_closed_forms() {
+    let closed: [fn(f64) -> f64; 6] = [
+        |_| 1.0,
+        |x| x,
+        |x| (3.0 * x * x - 1.0) / 2.0,
+        |x| (5.0 * x.powi(3) - 3.0 * x) / 2.0,
+        |x| (35.0 * x.powi(4) - 30.0 * x * x + 3.0) / 8.0,
+        |x| (63.0 * x.powi(5) - 70.0 * x.powi(3) + 15.0 * x) / 8.0,
+    ];
+    for (degree, p) in closed.iter().enumerate() {
+        for x in [-1.0, -0.3, 0.0, 0.7, 1.0] {
+            assert!((legendre(degree, x) - p(x)).abs() < 1e-12, "P{degree}({x})");
+        }
+        assert!((legendre(degree, 1.0) - 1.0).abs() < 1e-12);
+        assert!((legendre(degree, -1.0) - if degree % 2 == 0 { 1.0 } else { -1.0 }).abs() < 1e-12);
+    }
+}
+
+/// The segments carry the given residuals (not the runs' own) with each run's three parts.
+#[test]
+fn segments_carry_the_given_residuals_and_each_runs_parts() {
+    let runs = [rolling(1, 1.0, |_, _, n| n), synthetic_run(500.0, vec![vec![0.0; 100]], vec![vec![0.0; 100]])];
+    let residuals = vec![vec![7.0; N], vec![-1.0; 100]];
+    let segments = segments(&runs, &residuals);
+    assert_eq!(segments.len(), 2);
+    for ((segment, run), residual) in segments.iter().zip(&runs).zip(&residuals) {
+        assert!(std::ptr::eq(segment.residual, residual.as_slice()));
+        assert_eq!(segment.training, run.training);
+        assert_eq!(segment.select, run.select);
+        assert_eq!(segment.heldout, run.heldout);
+    }
+    assert_eq!(segments[1].training, 0..80);
+    assert_eq!(segments[1].heldout, 80..100);
+}
+
+/// The static-nonlinearity probe at one sample, by hand: phi = 0.5, rate = -0.4, eGK 0.1
+/// give phi^3 = 0.125, phi^5 = 0.03125, rate |rate| = -0.16, tanh(-2), 0.1 phi^2 = 0.025.
+#[test]
+fn the_static_nonlinearity_probe_is_its_hand_computed_columns() {
+    let mut run = synthetic_run(100.0, vec![vec![0.0; 3]], vec![vec![0.0; 3]]);
+    run.phi_rad = vec![0.5; 3];
+    run.phi_dot_rad_s = vec![-0.4; 3];
+    run.cl_egk = vec![0.1; 3];
+    let columns = probe_columns(&[run], "static_nonlinearity");
+    let values: Vec<f64> = columns[0].iter().map(|col| col[1]).collect();
+    let expected = [0.125, 0.03125, -0.16, (-2.0f64).tanh(), 0.025];
+    assert_eq!(values.len(), expected.len());
+    for (value, want) in values.iter().zip(expected) {
+        assert!((value - want).abs() < 1e-15, "{values:?}");
+    }
+}
+
+/// The moment-nonlinearity probe at one sample, by hand: a sim moment of 0.1 (eGK 0.04,
+/// jets 0.03 and 0.02, coupling 0.01) is 2 typical moments, so the columns are 4 and 8.
+#[test]
+fn the_moment_nonlinearity_probe_is_the_square_and_cube_of_the_moment() {
+    let mut run = synthetic_run(100.0, vec![vec![0.0; 3]], vec![vec![0.0; 3]]);
+    run.cl_egk = vec![0.04; 3];
+    run.cl_afc_side = [vec![0.03; 3], vec![0.02; 3]];
+    run.coupling = vec![0.01; 3];
+    let columns = probe_columns(&[run], "moment_nonlinearity");
+    let values: Vec<f64> = columns[0][5..].iter().map(|col| col[2]).collect();
+    assert_eq!(values.len(), 2);
+    assert!((values[0] - 4.0).abs() < 1e-12 && (values[1] - 8.0).abs() < 1e-12, "{values:?}");
+}
+
+/// The slow-gain probe: per run, the sim's moment (2 here) times `P_1..P_4` of time mapped
+/// to [-1, 1], in that run's own four columns and zero in the other run's: at the start
+/// `2 (-1)^d`, at the middle `2 P_d(0)` = 0, -1, 0, 0.75, at the end 2.
+#[test]
+fn the_slow_gain_probe_is_the_moment_times_legendre_polynomials_per_run() {
+    let run = || {
+        let mut run = synthetic_run(10.0, vec![vec![0.0; 11]], vec![vec![0.0; 11]]);
+        run.cl_egk = vec![2.0; 11];
+        run
+    };
+    let columns = probe_columns(&[run(), run()], "slow_gain");
+    assert_eq!(columns.len(), 2);
+    assert_eq!(columns[0].len(), 8);
+    let middle = [0.0, -1.0, 0.0, 0.75];
+    for degree in 1..=4 {
+        let own = &columns[0][degree - 1];
+        assert!((own[0] - 2.0 * (-1f64).powi(degree as i32)).abs() < 1e-12);
+        assert!((own[5] - middle[degree - 1]).abs() < 1e-12, "P{degree}(0): {}", own[5]);
+        assert!((own[10] - 2.0).abs() < 1e-12);
+        assert!(columns[0][4 + degree - 1].iter().all(|v| *v == 0.0));
+        assert!(columns[1][degree - 1].iter().all(|v| *v == 0.0));
+        assert_eq!(columns[1][4 + degree - 1], *own);
+    }
+}
+
+/// The input-dynamics probe: four signals through three lags each (12 columns); a constant
+/// input stays itself through a unit-gain lag started at rest (total blowing 0.01 + 0.02).
+#[test]
+fn the_input_dynamics_probe_lags_four_inputs_three_ways() {
+    let mut run = synthetic_run(100.0, vec![vec![0.0; 50]], vec![vec![0.0; 50]]);
+    run.phi_rad = vec![0.2; 50];
+    run.cmu = [vec![0.01; 50], vec![0.02; 50]];
+    let columns = probe_columns(&[run], "input_dynamics");
+    assert_eq!(columns[0].len(), 12);
+    assert!(columns[0][..3].iter().flatten().all(|v| (v - 0.2).abs() < 1e-15));
+    assert!(columns[0][6..9].iter().flatten().all(|v| (v - 0.03).abs() < 1e-15));
+    assert!(columns[0][3..6].iter().chain(&columns[0][9..]).flatten().all(|v| *v == 0.0));
+}
+
+/// Subtracting an effect removes `beta * column` at every sample of the run, held-out part
+/// included: with the inertial tare's column `phi_ddot` and beta 2, `r - 2 phi_ddot`.
+#[test]
+fn subtract_removes_the_fitted_effect_over_whole_runs() {
+    let context = test_context();
+    let run = rolling(2, 1.0, |_, _, n| n);
+    let mut effect = profiled(&InertialTare, 0.0, 0.0);
+    effect.fit.beta = vec![2.0];
+    let residuals = vec![run.residual.clone()];
+    let after = subtract(&effect, std::slice::from_ref(&run), &residuals, &context);
+    for idx in [0, N / 2, N - 1] {
+        let expected = run.residual[idx] - 2.0 * run.phi_ddot_rad_s2[idx];
+        assert!((after[0][idx] - expected).abs() < 1e-12, "sample {idx}");
+    }
+}
+
+/// A balance that keeps `-I phi_ddot` (effect RMS about four times the noise): the inertial
+/// tare is profiled with its coefficient `-I / (q S b)`, decisive evidence, and a held-out
+/// shrink near 1.
+#[test]
+fn profile_recovers_an_injected_inertial_tare_out_of_sample() {
+    let context = test_context();
+    let ixx_kgm2 = 3.0e-4;
+    let run = rolling(3, 1e-3, |_, _, n| n);
+    let residual: Vec<f64> = run
+        .phi_ddot_rad_s2
+        .iter()
+        .zip(&run.residual)
+        .map(|(a, n)| -ixx_kgm2 * a / context.moment_scale_nm + n)
+        .collect();
+    let found = profile(&InertialTare, std::slice::from_ref(&run), &[residual], &context, 1.0).expect("a profile");
+    let expected = -ixx_kgm2 / context.moment_scale_nm;
+    assert!((found.fit.beta[0] / expected - 1.0).abs() < 0.02, "{:?}", found.fit.beta);
+    assert!(found.delta_bic >= MIN_DELTA_BIC, "{}", found.delta_bic);
+    assert!(found.heldout.shrink() > 0.85, "{:?}", found.heldout);
+    assert!(found.selected() > 0.0);
+}
+
+/// White noise alone holds no effect: neither tare is decisive on it.
+#[test]
+fn profile_finds_no_decisive_effect_in_white_noise() {
+    let context = test_context();
+    let run = rolling(4, 1e-3, |_, _, n| n);
+    let residuals = vec![run.residual.clone()];
+    for candidate in [&InertialTare as Candidate, &GravityTare] {
+        let found = profile(candidate, std::slice::from_ref(&run), &residuals, &context, 1.0).expect("a profile");
+        assert!(found.delta_bic < MIN_DELTA_BIC, "{}: {}", candidate.name(), found.delta_bic);
+    }
+}
+
+/// Without runs there is nothing to profile.
+#[test]
+fn profile_without_runs_is_none() {
+    assert!(profile(&InertialTare, &[], &[], &test_context(), 1.0).is_none());
+}
+
+/// A candidate qualifies with decisive evidence (delta BIC at least `MIN_DELTA_BIC`) and an
+/// out-of-sample excess of at least `MIN_EFFECT_TO_NOISE^2` noise variances; both edges are
+/// inclusive, and just below either one it does not.
+#[test]
+fn a_candidate_qualifies_exactly_at_both_thresholds() {
+    let streams = streams(Vec::new(), 1.0);
+    let floor = Signature::default();
+    let stage = balance(Vec::new(), Vec::new());
+    let tiny = 2f64.powi(-30);
+    assert!(stage.qualifies(&profiled(&InertialTare, MIN_RATIO, MIN_DELTA_BIC), &streams, &floor));
+    assert!(!stage.qualifies(&profiled(&InertialTare, MIN_RATIO - tiny, MIN_DELTA_BIC), &streams, &floor));
+    assert!(!stage.qualifies(&profiled(&InertialTare, MIN_RATIO, MIN_DELTA_BIC - 1e-9), &streams, &floor));
+}
+
+/// The selection part's slope: an effect that acts in one selection block in four, fitted
+/// where it is real, has slope 1 there; fitted on noise it has slope about 0. What is
+/// selected is the larger of the removal per selection sample where the effect acts and
+/// the training part's size per sample where it acts times the confirmed slope.
+#[test]
+fn the_selection_slope_confirms_an_effect_whatever_share_of_it_the_blocks_hold() {
+    let run = rolling(3, 1.0, |_, _, n| n);
+    let select: Vec<usize> = run.select.samples().collect();
+    let first_block: std::collections::HashSet<usize> = select[..run.select.block].iter().copied().collect();
+    let effect: Vec<f64> = (0..run.len())
+        .map(|i| if first_block.contains(&i) || !run.select.contains(i) { (i as f64 * 0.05).sin() } else { 0.0 })
+        .collect();
+    let mut real = run.clone();
+    real.residual = run.residual.iter().zip(&effect).map(|(r, e)| r + e).collect();
+    let runs = vec![real];
+    let residuals: Vec<Vec<f64>> = runs.iter().map(|r| r.residual.clone()).collect();
+    let segments = segments(&runs, &residuals);
+    let columns = vec![vec![effect.clone()]];
+    let fit = regression::fit_through_origin(&segments, &columns).expect("a fit");
+    let noise_var = regression::difference_noise_var(&segments, None);
+    let slope = selection_slope(&segments, &columns, &fit, noise_var, 1.0);
+    assert!(
+        (slope.value - 1.0).abs() < 3.0 * slope.standard_error && slope.value > CONFIRM_Z * slope.standard_error,
+        "{slope:?}"
+    );
+    // The same column fitted on noise alone.
+    let noise = vec![rolling(4, 1.0, |_, _, n| n)];
+    let noise_residuals: Vec<Vec<f64>> = noise.iter().map(|r| r.residual.clone()).collect();
+    let noise_segments = super::segments(&noise, &noise_residuals);
+    let noise_fit = regression::fit_through_origin(&noise_segments, &columns).expect("a fit");
+    let spurious = selection_slope(&noise_segments, &columns, &noise_fit, noise_var, 1.0);
+    assert!(spurious.value.abs() < 3.0 * spurious.standard_error, "{spurious:?}");
+    // Explains 0.25 per training sample where it acts (all of them).
+    let mut found = profiled(&InertialTare, 0.25, MIN_DELTA_BIC);
+    // No selection sample where it acts: the slope alone decides, capped at 1.
+    found.selection_active_share = 0.0;
+    found.selection_slope = Slope { value: 0.5, standard_error: 0.2 };
+    assert!((found.selected() - 0.125).abs() < 1e-12, "{}", found.selected());
+    found.selection_slope = Slope { value: 0.3, standard_error: 0.2 };
+    assert_eq!(found.selected(), 0.0);
+    found.selection_slope = Slope { value: 3.0, standard_error: 0.2 };
+    assert!((found.selected() - 0.25).abs() < 1e-12);
+    // Removes 0.25 on the selection part, where it acts in half the samples: 0.5 per
+    // sample where it acts, the larger measure.
+    found.selection_active_share = 0.5;
+    found.selection_slope = Slope { value: 0.3, standard_error: 0.2 };
+    assert!((found.selected() - 0.5).abs() < 1e-12, "{}", found.selected());
+    found.active_share = 0.25;
+    found.selection_slope = Slope { value: 1.0, standard_error: 0.2 };
+    assert!((found.selected() - 1.0).abs() < 1e-12, "{}", found.selected());
+}
+
+/// The naming threshold counts the sim's own gap on the touched runs as noise: a gap of one
+/// noise variance on the one roll run at 20 deg doubles it there; a run at an angle the
+/// signature lacks takes its kind's figure; untouched runs and no runs leave it at the
+/// white noise's.
+#[test]
+fn the_naming_threshold_counts_the_sims_own_gap_on_the_touched_runs() {
+    let mut at_20 = rolling(1, 1.0, |_, _, n| n);
+    at_20.kind = firmware_sim::dataset::RunKind::Roll;
+    at_20.alpha_deg = 20.0;
+    let mut at_30 = at_20.clone();
+    at_30.alpha_deg = 30.0;
+    let streams = streams(vec![at_20, at_30], 1.0);
+    let floor = Signature {
+        gap_to_noise_by_kind: [("roll@20".to_owned(), 1.0), ("roll".to_owned(), 3.0)].into_iter().collect(),
+        ..Signature::default()
+    };
+    let threshold = |touched: &[bool]| crate::diagnose::naming_threshold(&streams, touched, &floor);
+    assert_eq!(threshold(&[true, false]), 2.0 * MIN_RATIO);
+    assert_eq!(threshold(&[false, true]), 4.0 * MIN_RATIO);
+    assert_eq!(threshold(&[true, true]), 3.0 * MIN_RATIO);
+    assert_eq!(threshold(&[false, false]), MIN_RATIO);
+    assert_eq!(crate::diagnose::naming_threshold(&streams, &[true, true], &Signature::default()), MIN_RATIO);
+}
+
+/// The excess is counted beyond the sim's own signature for that candidate (0.75 removed
+/// over a floor of 0.5 is exactly the threshold; a hair more floor and it fails), in noise
+/// variances of the balance stream; a negative floor sets none.
+#[test]
+fn the_excess_is_counted_beyond_the_signature_in_noise_variances() {
+    let stage = balance(Vec::new(), Vec::new());
+    let candidate = profiled(&InertialTare, 0.75, 50.0);
+    let floor = |value: f64| Signature {
+        explained_to_noise: BTreeMap::from([("inertial_tare".to_owned(), value)]),
+        ..Signature::default()
+    };
+    let unit = streams(Vec::new(), 1.0);
+    assert!(stage.qualifies(&candidate, &unit, &floor(0.5)));
+    assert!(!stage.qualifies(&candidate, &unit, &floor(0.5 + 2f64.powi(-30))));
+    assert_eq!(stage.excess(&candidate, &unit, &floor(-3.0)), 0.75);
+    // Another candidate's floor does not count against it.
+    let other =
+        Signature { explained_to_noise: BTreeMap::from([("gravity_tare".to_owned(), 10.0)]), ..Signature::default() };
+    assert_eq!(stage.excess(&candidate, &unit, &other), 0.75);
+    // With a noise variance of 2, 0.75 removed is 0.375 noise variances.
+    assert_eq!(stage.excess(&candidate, &streams(Vec::new(), 2.0), &floor(0.0)), 0.375);
+}
+
+/// Nothing named and nothing that predicts the gap: `none`. Something that predicts at
+/// least `MIN_EFFECT_TO_NOISE^2` noise variances out of sample (the best candidate, or the
+/// structure probe) without being named: `unattributed`; just below: `none`.
+#[test]
+fn nothing_named_is_none_below_the_threshold_and_unattributed_at_it() {
+    let tiny = 2f64.powi(-30);
+    let quiet = balance(vec![profiled(&InertialTare, MIN_RATIO - tiny, 0.0)], Vec::new());
+    assert_eq!(decide(&quiet, &probe(0.0, false), &no_sensor()).verdict(), Verdict::None);
+    let predicted = balance(vec![profiled(&InertialTare, MIN_RATIO, 0.0)], Vec::new());
+    assert_eq!(decide(&predicted, &probe(0.0, false), &no_sensor()).verdict(), Verdict::Unattributed);
+    let empty = balance(Vec::new(), Vec::new());
+    assert_eq!(decide(&empty, &probe(MIN_RATIO - tiny, false), &no_sensor()).verdict(), Verdict::None);
+    assert_eq!(decide(&empty, &probe(MIN_RATIO, false), &no_sensor()).verdict(), Verdict::Unattributed);
+}
+
+/// A named balance effect is the verdict `effect`, unless the probe still finds structure
+/// in the remainder: then `unattributed`.
+#[test]
+fn a_named_balance_effect_is_the_verdict_unless_structure_remains() {
+    let top = profiled(&InertialTare, 2.0, 100.0);
+    let named = balance(vec![top.clone()], vec![top]);
+    let clean = decide(&named, &probe(0.0, false), &no_sensor());
+    assert!(matches!(clean, Decision::Balance));
+    assert_eq!(clean.verdict(), Verdict::Effect);
+    assert_eq!(decide(&named, &probe(0.0, true), &no_sensor()).verdict(), Verdict::Unattributed);
+}
+
+/// A named sensor effect wins only when stronger than the named balance effect (strictly:
+/// a tie goes to the balance); with no balance effect it is the verdict.
+#[test]
+fn a_sensor_effect_wins_only_when_strictly_stronger() {
+    let top = profiled(&InertialTare, 0.8, 100.0);
+    let named = balance(vec![top.clone()], vec![top]);
+    let sensor = |removed: f64| SensorAttribution { findings: Vec::new(), named: Some(sensor_finding(removed)) };
+    assert!(matches!(decide(&named, &probe(0.0, false), &sensor(0.8)), Decision::Balance));
+    assert!(matches!(decide(&named, &probe(0.0, false), &sensor(0.8 + 2f64.powi(-30))), Decision::Sensor(_)));
+    let alone = decide(&balance(Vec::new(), Vec::new()), &probe(0.0, false), &sensor(0.3));
+    assert!(matches!(&alone, Decision::Sensor(f) if f.channel.as_deref() == Some("cp04")));
+    assert_eq!(alone.verdict(), Verdict::Effect);
+}
+
+/// A fault of one channel is named only when it stands out from the other channels: by the
+/// naming threshold and by at least the runner-up's own level. A deviation several taps share
+/// alike (a dynamic-pressure fluctuation) names no channel; a lag finding is not held to it.
+#[test]
+fn a_one_channel_fault_must_stand_out_from_the_other_channels() {
+    let on = |channel: &str, removed: f64| SensorFinding {
+        channel: Some(channel.into()),
+        channels: vec![channel.into()],
+        ..sensor_finding(removed)
+    };
+    let floor = Signature::default();
+    let named = |findings: &[SensorFinding]| {
+        findings.iter().find(|f| SensorAttribution::stands_out(f, findings, &floor)).map(|f| f.channels[0].clone())
+    };
+    assert_eq!(named(&[on("cp05", 7.0), on("cp02", 0.5)]), Some("cp05".into()));
+    assert_eq!(named(&[on("cp05", 1.0), on("cp02", 0.5)]), Some("cp05".into()), "a lead equal to the runner-up");
+    assert_eq!(named(&[on("cp05", 0.99), on("cp02", 0.5)]), None);
+    assert_eq!(named(&[on("cp06", 2.9), on("cp04", 2.6), on("cp10", 2.4)]), None, "common to the taps");
+    assert_eq!(named(&[on("cp06", 0.3), on("cp04", 0.1)]), None, "a lead below the naming threshold");
+    let lag = SensorFinding { effect: firmware_sim::effect::Effect::PressureLag, ..on("cp06", 0.3) };
+    assert!(SensorAttribution::stands_out(&lag, &[lag.clone(), on("cp04", 2.6)], &floor));
+}
+
+/// The structure probe on a residual that is white noise finds less than an effect of
+/// `MIN_EFFECT_TO_NOISE` (verdict `none`); on one holding a static cubic of the roll angle
+/// that no candidate spans (effect RMS several times the noise) it finds more
+/// (`unattributed`).
+#[test]
+fn the_probe_tells_noise_from_structure_no_candidate_spans() {
+    let noise_std = 1e-3;
+    let floor = Signature::default();
+    let empty = balance(Vec::new(), Vec::new());
+    let white = streams(vec![rolling(5, noise_std, |_, _, n| n)], noise_std * noise_std);
+    let found = ProbeResult::run(&white, &empty, &floor);
+    assert!(found.structure < MIN_RATIO, "{}", found.structure);
+    let white_gaps = GapSummary::run(&white, &floor);
+    assert!(!white_gaps.beyond_scatter);
+    assert!(matches!(Decision::make(&white, &empty, &found, &no_sensor(), &white_gaps, &floor), Decision::None));
+    let cubic = streams(vec![rolling(6, noise_std, |_, phi, n| 0.05 * phi.powi(3) + n)], noise_std * noise_std);
+    let found = ProbeResult::run(&cubic, &empty, &floor);
+    assert!(found.structure >= MIN_RATIO, "{}", found.structure);
+    let cubic_gaps = GapSummary::run(&cubic, &floor);
+    assert!(matches!(
+        Decision::make(&cubic, &empty, &found, &no_sensor(), &cubic_gaps, &floor),
+        Decision::Unattributed
+    ));
+}
+
+/// A gap that nothing predicts (the probe finds nothing, no candidate qualifies) is
+/// unattributed when it lies beyond the sim's own scatter, and `none` otherwise.
+#[test]
+fn an_unpredictable_gap_beyond_the_sims_scatter_is_unattributed() {
+    let empty = balance(Vec::new(), Vec::new());
+    let nothing = probe(0.0, false);
+    let make = |beyond| {
+        Decision::make(&streams(Vec::new(), 1.0), &empty, &nothing, &no_sensor(), &gaps(beyond), &Signature::default())
+    };
+    assert!(matches!(make(false), Decision::None));
+    assert!(matches!(make(true), Decision::Unattributed));
+}
