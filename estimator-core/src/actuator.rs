@@ -8,6 +8,7 @@
 //! long loss runs the response on the demands alone.
 
 use crate::coeffs::{ActuatorResponse, DEMAND_SLOTS};
+use crate::real::Real;
 
 /// Mask of a ring index into the demand history.
 const SLOT_MASK: usize = DEMAND_SLOTS - 1;
@@ -16,20 +17,20 @@ const _: () = assert!(DEMAND_SLOTS.is_power_of_two() && DEMAND_SLOTS <= 256, "th
 
 /// The demands noted so far, newest last, for both jets.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct DemandHistory {
+pub struct DemandHistory<R = f32> {
     /// `[port, starboard]` demand per slot; slots not written yet are zero (no blowing).
-    demands: [[f32; 2]; DEMAND_SLOTS],
+    demands: [[R; 2]; DEMAND_SLOTS],
     /// Slot of the newest demand.
     newest: u8,
     /// True once a demand was noted: without one, a missing Cmu is held.
     noted: bool,
 }
 
-impl DemandHistory {
+impl<R: Real> DemandHistory<R> {
     /// No demand noted yet.
     #[must_use]
     pub const fn new() -> Self {
-        Self { demands: [[0.0; 2]; DEMAND_SLOTS], newest: 0, noted: false }
+        Self { demands: [[R::ZERO; 2]; DEMAND_SLOTS], newest: 0, noted: false }
     }
 
     /// True once a demand was noted.
@@ -41,15 +42,15 @@ impl DemandHistory {
     /// Notes the demand of this step, `[port, starboard]`, limited to `[0, cmu_limit]`; a
     /// non-finite demand repeats the jet's previous one (the valve holds its last command).
     /// Constant time; never panics.
-    pub fn note(&mut self, demand: [f32; 2], cmu_limit: f32) {
+    pub fn note(&mut self, demand: [R; 2], cmu_limit: R) {
         let previous = self.newest_demands();
         let slot = (usize::from(self.newest) + 1) & SLOT_MASK;
-        let limited: [f32; 2] = core::array::from_fn(|side| {
-            let value = demand.get(side).copied().unwrap_or(f32::NAN);
+        let limited: [R; 2] = core::array::from_fn(|side| {
+            let value = demand.get(side).copied().unwrap_or(R::NAN);
             if value.is_finite() {
-                crate::min_num(crate::max_num(value, 0.0), cmu_limit)
+                crate::min_num(crate::max_num(value, R::ZERO), cmu_limit)
             } else {
-                previous.get(side).copied().unwrap_or(0.0)
+                previous.get(side).copied().unwrap_or(R::ZERO)
             }
         });
         if let Some(entry) = self.demands.get_mut(slot) {
@@ -63,19 +64,19 @@ impl DemandHistory {
     /// `pole previous + (1 - pole) gain demand[k - 1 - delay_steps]`. A dead time beyond the
     /// history reads its oldest slot. Not limited (the caller limits and checks it).
     #[must_use]
-    pub fn predict(&self, response: &ActuatorResponse, side: usize, previous_cmu: f32) -> f32 {
+    pub fn predict(&self, response: &ActuatorResponse<R>, side: usize, previous_cmu: R) -> R {
         let age = usize::from(response.delay_steps).min(SLOT_MASK);
         let slot = (usize::from(self.newest) + DEMAND_SLOTS - age) & SLOT_MASK;
-        let demand = self.demands.get(slot).and_then(|pair| pair.get(side)).copied().unwrap_or(0.0);
-        response.pole * previous_cmu + (1.0 - response.pole) * response.gain * demand
+        let demand = self.demands.get(slot).and_then(|pair| pair.get(side)).copied().unwrap_or(R::ZERO);
+        response.pole * previous_cmu + (R::ONE - response.pole) * response.gain * demand
     }
 
-    fn newest_demands(&self) -> [f32; 2] {
-        self.demands.get(usize::from(self.newest) & SLOT_MASK).copied().unwrap_or([0.0; 2])
+    fn newest_demands(&self) -> [R; 2] {
+        self.demands.get(usize::from(self.newest) & SLOT_MASK).copied().unwrap_or([R::ZERO; 2])
     }
 }
 
-impl Default for DemandHistory {
+impl<R: Real> Default for DemandHistory<R> {
     fn default() -> Self {
         Self::new()
     }

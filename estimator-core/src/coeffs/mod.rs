@@ -283,13 +283,13 @@ pub struct ControllerParams {
 /// (`host-tools fit`); without command columns it is the identity (`delay_steps = 0`,
 /// `pole = 0`, `gain = 1`: the measured Cmu is the last demand).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct ActuatorResponse {
+pub struct ActuatorResponse<R = f32> {
     /// Dead time, steps (below [`DEMAND_SLOTS`]).
     pub delay_steps: u8,
     /// Pole of the lag, `exp(-dt / T_valve)`, in `[0, 1)`.
-    pub pole: f32,
+    pub pole: R,
     /// Steady-state Cmu per unit demand, in `(0, 10]`.
-    pub gain: f32,
+    pub gain: R,
 }
 
 /// The range of roll moments measured by the balance in the fit data (the training part of every

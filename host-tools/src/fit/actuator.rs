@@ -13,6 +13,7 @@
 //! Without command columns, or without a commanded jet, the response is the identity (the Cmu is
 //! the demand) or the other jet's, and the report says so.
 
+use estimator_core::actuator::DemandHistory;
 use estimator_core::coeffs::{ActuatorResponse, DEMAND_SLOTS};
 use firmware_sim::dataset::Dataset;
 use serde::Serialize;
@@ -229,19 +230,19 @@ fn free_run_fit(data: &JetData<'_>, delay: usize) -> Option<(f64, f64, f64)> {
     (gain.is_finite() && rms.is_finite()).then_some((pole, gain, rms))
 }
 
-/// The unit-gain response to the commands, per run (started at rest), as the core steps it.
+/// The unit-gain response to the commands, per run (started at rest): the core's demand
+/// history and response ([`DemandHistory`], [`ActuatorResponse`]) in f64, each command noted
+/// after its step (a command is never above the jet's range here: no limit).
 fn unit_response(command: &[f64], delay: usize, pole: f64) -> Vec<f64> {
-    let mut state = 0.0;
-    let mut held = 0.0;
-    (0..command.len())
-        .map(|k| {
-            let value = state;
-            if let Some(&cmd) = k.checked_sub(delay).and_then(|idx| command.get(idx))
-                && cmd.is_finite()
-            {
-                held = cmd;
-            }
-            state = pole * state + (1.0 - pole) * held;
+    let response = ActuatorResponse { delay_steps: u8::try_from(delay).unwrap_or(u8::MAX), pole, gain: 1.0 };
+    let mut history = DemandHistory::new();
+    let mut cmu = 0.0;
+    command
+        .iter()
+        .map(|&demand| {
+            let value = cmu;
+            history.note([demand, demand], f64::INFINITY);
+            cmu = history.predict(&response, 0, cmu);
             value
         })
         .collect()
