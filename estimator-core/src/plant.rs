@@ -4,43 +4,45 @@
 //! `C_l,slow[k+1] = p C_l,slow[k] + (1 - p) C_l,AFC[k]` ([`PlantParams`]).
 
 use crate::coeffs::{MAX_VARS, PlantParams, plant_var};
+use crate::real::Real;
 use crate::sparse::{Interpreted, ModelId, SparseEval};
 
 /// Largest magnitude of the plant's moment before it is treated as diverged (100 times the
 /// authority of a trailing-edge jet).
 const CL_LIMIT: f32 = 1.0;
 
-/// One jet's plant state.
+/// One jet's plant state, in the scalar `R` (f32 on the target; f64 in the host's fit, which
+/// runs its candidate models through [`Plant::step_by`]).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct Plant {
-    cl: f32,
-    slow: f32,
-    last_cmu: f32,
+pub struct Plant<R = f32> {
+    cl: R,
+    slow: R,
+    last_cmu: R,
 }
 
-impl Plant {
+impl<R: Real> Plant<R> {
     /// No blowing, no moment.
     #[must_use]
     pub const fn new() -> Self {
-        Self { cl: 0.0, slow: 0.0, last_cmu: 0.0 }
+        Self { cl: R::ZERO, slow: R::ZERO, last_cmu: R::ZERO }
     }
 
     /// The moment of this step, `C_l,AFC[k]`.
     #[must_use]
-    pub const fn cl(&self) -> f32 {
+    pub const fn cl(&self) -> R {
         self.cl
     }
 
     /// The previous step's Cmu.
     #[must_use]
-    pub const fn last_cmu(&self) -> f32 {
+    pub const fn last_cmu(&self) -> R {
         self.last_cmu
     }
 
     /// The plant's variables for a candidate Cmu at this step.
     #[must_use]
-    pub fn variables(&self, cmu: f32, alpha_rad: f32) -> [f32; MAX_VARS] {
-        let mut vars = [0.0; MAX_VARS];
+    pub fn variables(&self, cmu: R, alpha_rad: R) -> [R; MAX_VARS] {
+        let mut vars = [R::ZERO; MAX_VARS];
         vars[plant_var::CL_AFC] = self.cl;
         vars[plant_var::CMU] = cmu;
         vars[plant_var::DCMU] = cmu - self.last_cmu;
@@ -49,6 +51,32 @@ impl Plant {
         vars
     }
 
+    /// Returns `C_l,AFC[k]` and advances to `k + 1` with this step's Cmu, the next moment
+    /// given by `model` of the plant's variables: the Cmu limited to `[0, cmu_max]`, the slow
+    /// state with `slow_pole`, and a reset when either state leaves +-1 (the second value).
+    pub fn step_by(
+        &mut self,
+        slow_pole: R,
+        cmu_max: R,
+        cmu: R,
+        alpha_rad: R,
+        model: impl FnOnce(&[R; MAX_VARS]) -> R,
+    ) -> (R, bool) {
+        let current = self.cl;
+        // maxNum and minNum, not `clamp`: with any tables (a NaN or negative bound) they cannot
+        // panic.
+        let cmu = crate::min_num(crate::max_num(cmu, R::ZERO), cmu_max);
+        let next = model(&self.variables(cmu, alpha_rad));
+        let slow = slow_pole * self.slow + (R::ONE - slow_pole) * current;
+        let limit = R::from_f32(CL_LIMIT);
+        let reset = !(crate::bounded(next, limit) && crate::bounded(slow, limit));
+        (self.cl, self.slow) = if reset { (R::ZERO, R::ZERO) } else { (next, slow) };
+        self.last_cmu = cmu;
+        (current, reset)
+    }
+}
+
+impl Plant {
     /// Returns `C_l,AFC[k]` and advances to `k + 1` with this step's Cmu; the second value is
     /// true when the state diverged and was reset.
     pub fn step(&mut self, params: &PlantParams, cmu: f32, alpha_rad: f32) -> (f32, bool) {
@@ -65,16 +93,7 @@ impl Plant {
         cmu: f32,
         alpha_rad: f32,
     ) -> (f32, bool) {
-        let current = self.cl;
-        // maxNum and minNum, not `clamp`: with any tables (a NaN or negative bound) they cannot
-        // panic.
-        let cmu = crate::min_num(crate::max_num(cmu, 0.0), params.cmu_max);
-        let next = eval.eval(id, &params.model, &self.variables(cmu, alpha_rad));
-        let slow = params.slow_pole * self.slow + (1.0 - params.slow_pole) * current;
-        let reset = !(crate::bounded(next, CL_LIMIT) && crate::bounded(slow, CL_LIMIT));
-        (self.cl, self.slow) = if reset { (0.0, 0.0) } else { (next, slow) };
-        self.last_cmu = cmu;
-        (current, reset)
+        self.step_by(params.slow_pole, params.cmu_max, cmu, alpha_rad, |vars| eval.eval(id, &params.model, vars))
     }
 }
 

@@ -18,6 +18,7 @@
 use std::ops::Range;
 
 use estimator_core::coeffs::{MAX_TERMS, PlantParams, plant_var};
+use estimator_core::plant::Plant;
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{DMatrix, DVector, Dyn, Owned};
 use rayon::prelude::*;
@@ -407,8 +408,10 @@ fn score(
     }
 }
 
-/// Open-loop simulation of an increment model from rest over the first `end` samples, as the
-/// core runs the plant (from zero, on the recorded Cmu).
+/// Open-loop simulation of an increment model from rest over the first `end` samples: the
+/// core's plant ([`Plant::step_by`]) in f64 on the recorded Cmu, its next moment the present
+/// one plus the model's increment. From the first step the core would reset (a state beyond
+/// +-1, [`DIVERGED`]) the candidate counts as diverged: NaN.
 fn simulate_increments(
     library: &Library,
     coefficients: &[f64],
@@ -417,22 +420,20 @@ fn simulate_increments(
     shape: Shape,
     end: usize,
 ) -> Vec<f64> {
-    let (mut state, mut slow) = (0.0f64, 0.0f64);
-    let mut out = Vec::with_capacity(end);
-    let zeros = vec![0.0; signals.len()];
-    let inputs = variables(signals, side, &zeros, shape);
-    for mut vars in inputs.into_iter().take(end) {
-        out.push(state);
-        vars[plant_var::CL_AFC] = state;
-        vars[plant_var::CL_SLOW] = slow;
-        let increment = library.predict(coefficients, &vars).unwrap_or(f64::NAN);
-        slow = shape.slow_pole * slow + (1.0 - shape.slow_pole) * state;
-        state += increment;
-        if state.is_nan() || state.abs() > DIVERGED {
-            state = f64::NAN;
-        }
-    }
-    out
+    let mut plant = Plant::<f64>::new();
+    let mut diverged = false;
+    (0..end.min(signals.len()))
+        .map(|k| {
+            let alpha_rad = signals.alpha_deg[k].to_radians();
+            let (current, reset) =
+                plant.step_by(shape.slow_pole, shape.cmu_max, signals.cmu[side][k], alpha_rad, |vars| {
+                    vars[plant_var::CL_AFC] + library.predict(coefficients, vars).unwrap_or(f64::NAN)
+                });
+            let value = if diverged { f64::NAN } else { current };
+            diverged |= reset;
+            value
+        })
+        .collect()
 }
 
 /// The starboard model mirrored from the port one, for datasets that blow one side only: the
