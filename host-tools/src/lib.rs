@@ -24,6 +24,7 @@ pub mod fit;
 pub mod hil;
 pub mod model;
 pub mod plot;
+pub mod progress;
 pub mod qemu;
 pub mod reliability;
 pub mod replay;

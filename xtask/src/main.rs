@@ -13,7 +13,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
-use indicatif::{ProgressBar, ProgressStyle};
+use host_tools::progress::{progress_bar, spinner};
 
 /// Developer tasks: code generation check, fuzzing, soak.
 #[derive(Debug, Parser)]
@@ -211,23 +211,4 @@ fn soak(args: SoakArgs) -> anyhow::Result<()> {
         "the soak failed: an estimate was not finite, left the bound or the envelope, or was limited unflagged"
     );
     Ok(())
-}
-
-/// A spinner on stderr.
-fn spinner(message: String) -> ProgressBar {
-    let spinner = ProgressBar::new_spinner().with_message(message);
-    spinner.enable_steady_tick(std::time::Duration::from_millis(120));
-    spinner
-}
-
-/// A progress bar on stderr.
-fn progress_bar(length: u64, message: &'static str) -> ProgressBar {
-    let bar = ProgressBar::new(length);
-    bar.set_style(
-        ProgressStyle::with_template("{spinner} {msg} [{bar:30}] {pos}/{len} ({elapsed})")
-            .unwrap_or_else(|_| ProgressStyle::default_bar())
-            .progress_chars("=> "),
-    );
-    bar.set_message(message);
-    bar
 }

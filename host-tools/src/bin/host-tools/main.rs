@@ -3,7 +3,6 @@
 
 mod commands;
 mod flags;
-mod progress;
 
 use std::process::ExitCode;
 

@@ -6,7 +6,7 @@ use anyhow::Context;
 use firmware_sim::campaign::Scenario;
 
 use crate::flags::*;
-use crate::progress::*;
+use host_tools::progress::*;
 
 /// `simulate`: scenario -> synthetic tunnel -> dataset folder.
 pub(crate) fn simulate(args: SimulateArgs) -> anyhow::Result<()> {

@@ -5,7 +5,7 @@ use std::time::Instant;
 use anyhow::Context;
 
 use crate::flags::*;
-use crate::progress::*;
+use host_tools::progress::*;
 
 /// `diagnose`: dataset (+ model) -> report folder with diagnosis.json.
 pub(crate) fn diagnose(args: DiagnoseArgs) -> anyhow::Result<()> {

@@ -7,7 +7,7 @@ use firmware_sim::campaign::Scenario;
 use host_tools::qemu::SparseCode;
 
 use crate::flags::*;
-use crate::progress::*;
+use host_tools::progress::*;
 
 /// `qemu-replay`: the firmware in QEMU against the host replay, one run.
 pub(crate) fn qemu_replay(args: QemuReplayArgs) -> anyhow::Result<()> {

@@ -7,7 +7,7 @@ use anyhow::Context;
 use indicatif::ProgressBar;
 
 use crate::flags::*;
-use crate::progress::*;
+use host_tools::progress::*;
 
 /// `fit`: dataset -> model folder.
 pub(crate) fn fit(args: FitArgs) -> anyhow::Result<()> {

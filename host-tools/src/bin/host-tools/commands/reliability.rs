@@ -5,7 +5,7 @@ use std::time::Instant;
 use anyhow::Context;
 
 use crate::flags::*;
-use crate::progress::*;
+use host_tools::progress::*;
 
 /// `faults`: the sensor-fault study on held-out data, as a report folder.
 pub(crate) fn faults(args: FaultsArgs) -> anyhow::Result<()> {

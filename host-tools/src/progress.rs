@@ -1,15 +1,19 @@
-//! Progress bars and spinners on stderr.
+//! Progress bars and spinners on stderr, for the command line and the developer tasks.
 
 use indicatif::{ProgressBar, ProgressStyle};
 
-pub(crate) fn spinner(message: String) -> ProgressBar {
+/// A spinner that ticks by itself, with `message`.
+#[must_use]
+pub fn spinner(message: String) -> ProgressBar {
     let spinner = ProgressBar::new_spinner();
     spinner.enable_steady_tick(std::time::Duration::from_millis(120));
     spinner.set_message(message);
     spinner
 }
 
-pub(crate) fn progress_bar(length: u64, message: &'static str) -> ProgressBar {
+/// A bar of `length` steps with `message`.
+#[must_use]
+pub fn progress_bar(length: u64, message: &'static str) -> ProgressBar {
     let bar = ProgressBar::new(length);
     bar.set_style(
         ProgressStyle::with_template("{spinner} {msg} [{bar:30}] {pos}/{len} ({elapsed})")
