@@ -77,9 +77,16 @@ fn feedforward_and_feedback_lower_the_roll_moment_within_the_actuator_range() {
                 "{alpha} {mode:?}: Cmu within [0, cmu_max]: {metrics:?}"
             );
         }
+        // The feedforward of the estimate is what the estimator adds: with it the RMS falls by
+        // 24 to 45 % on this scenario, with the feedback alone by 16 to 19 %. An estimate that
+        // followed nothing would leave the feedback's share; one of the wrong sign would add.
+        let feedback = results.reduction(alpha, Mode::Feedback).unwrap();
         for mode in [Mode::FfFbLinear, Mode::FfFbCoupled] {
             let reduction = results.reduction(alpha, mode).unwrap();
-            assert!(reduction > 0.0, "alpha {alpha} {mode:?}: reduction {reduction}");
+            assert!(
+                reduction >= 0.1 && reduction > feedback + 0.03,
+                "alpha {alpha} {mode:?}: reduction {reduction}, feedback alone {feedback}"
+            );
         }
     }
     // Deterministic: the same scenario gives the same numbers.
