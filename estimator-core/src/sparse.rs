@@ -3,11 +3,12 @@
 //! anti-Dirac indicators `delta_bar(v) = 1 if |v| > eps else 0` (paper section V).
 //!
 //! The plant (paper eq. 5) and the coupling operator (paper eqs. 9-11) share this
-//! representation, and the host evaluates the same tables in f64 with [`SparseModel::eval_f64`].
+//! representation, and the host evaluates the same tables in f64 with [`SparseModel::eval_in`].
 
 use serde::{Deserialize, Serialize};
 
 use crate::coeffs::{MAX_DEGREE, MAX_TERMS, MAX_VARS};
+use crate::real::Real;
 
 /// One factor of a monomial: a variable of the model, or the constant `1` that pads a term of
 /// degree below [`MAX_DEGREE`].
@@ -121,16 +122,18 @@ impl Monomial {
         in_range && self.factors.windows(2).all(|pair| pair[0] <= pair[1])
     }
 
-    /// Product of the factors and gates in f64 (the host's reference evaluation).
+    /// Product of the factors, zero when a gate is shut, in any scalar (the host builds the
+    /// SINDy library's columns with it in f64): the factors multiplied in order, as
+    /// [`SparseModel::eval`] multiplies them after the coefficient.
     #[must_use]
-    pub fn eval_f64(&self, vars: &[f64; MAX_VARS], gate_threshold: &[f32; MAX_VARS]) -> f64 {
-        let gated_off = (0..MAX_VARS).any(|var_idx| {
-            self.gate_mask & (1 << var_idx) != 0 && !indicator_f64(vars[var_idx], gate_threshold[var_idx])
-        });
+    pub fn eval_in<R: Real>(&self, vars: &[R; MAX_VARS], gate_threshold: &[f32; MAX_VARS]) -> R {
+        let gated_off = (0..MAX_VARS)
+            .any(|var_idx| self.gate_mask & (1 << var_idx) != 0 && !indicator(vars[var_idx], gate_threshold[var_idx]));
         if gated_off {
-            return 0.0;
+            return R::ZERO;
         }
-        self.factors.iter().map(|&factor| vars.get(factor.index()).copied().unwrap_or(1.0)).product()
+        let table = factor_table(vars);
+        self.factors.iter().fold(R::ONE, |product, &factor| product * table[factor.index()])
     }
 
     /// Total degree of the term.
@@ -193,12 +196,17 @@ impl SparseModel {
     /// as evaluating every indicator first: the terms and their order do not change.
     #[must_use]
     pub fn eval(&self, vars: &[f32; MAX_VARS]) -> f32 {
-        let mut table = [1.0f32; FACTOR_TABLE_LEN];
-        for (slot, &value) in table.iter_mut().zip(vars) {
-            *slot = value;
-        }
-        // `-0.0` is the identity of f32 addition, so the first term is not added to a zero.
-        let mut sum = -0.0f32;
+        self.eval_in(vars)
+    }
+
+    /// [`SparseModel::eval`] in any scalar, the table's f32 coefficients and thresholds widened
+    /// exactly (the host's fits evaluate the tables in f64 with it).
+    #[must_use]
+    #[inline]
+    pub fn eval_in<R: Real>(&self, vars: &[R; MAX_VARS]) -> R {
+        let table = factor_table(vars);
+        // `-0.0` is the identity of addition, so the first term is not added to a zero.
+        let mut sum = R::NEG_ZERO;
         let mut rest = self.active_terms();
         // Two terms per turn while neither has a gate: half the loop's overhead.
         while let [first, second, tail @ ..] = rest {
@@ -222,7 +230,7 @@ impl SparseModel {
     /// The rest of [`SparseModel::eval`] from the first gated term on: the indicators, then
     /// the remaining `terms` added to `sum` in order, a gated-off term skipped.
     #[inline(never)]
-    fn eval_gated(&self, table: &[f32; FACTOR_TABLE_LEN], terms: &[Term], mut sum: f32) -> f32 {
+    fn eval_gated<R: Real>(&self, table: &[R; FACTOR_TABLE_LEN], terms: &[Term], mut sum: R) -> R {
         let mut active = 0u8;
         for (var_idx, (&value, &threshold)) in table.iter().zip(&self.gate_threshold).enumerate() {
             if indicator(value, threshold) {
@@ -236,21 +244,23 @@ impl SparseModel {
         }
         sum
     }
+}
 
-    /// Evaluates the model in f64 with the same coefficients (the host's reference).
-    #[must_use]
-    pub fn eval_f64(&self, vars: &[f64; MAX_VARS]) -> f64 {
-        self.active_terms()
-            .iter()
-            .map(|term| f64::from(term.coeff) * term.monomial.eval_f64(vars, &self.gate_threshold))
-            .sum()
+/// The variables extended by the constant 1 (the padding factor's entry), so that a
+/// [`Factor`] always indexes it.
+#[inline(always)]
+fn factor_table<R: Real>(vars: &[R; MAX_VARS]) -> [R; FACTOR_TABLE_LEN] {
+    let mut table = [R::ONE; FACTOR_TABLE_LEN];
+    for (slot, &value) in table.iter_mut().zip(vars) {
+        *slot = value;
     }
+    table
 }
 
 /// A term's coefficient times its [`MAX_DEGREE`] factors from `table`, in factor order.
 #[inline(always)]
-fn term_value(term: &Term, table: &[f32; FACTOR_TABLE_LEN]) -> f32 {
-    let mut product = term.coeff;
+fn term_value<R: Real>(term: &Term, table: &[R; FACTOR_TABLE_LEN]) -> R {
+    let mut product = R::from_f32(term.coeff);
     for &factor in &term.monomial.factors {
         product *= table[factor.index()];
     }
@@ -300,14 +310,8 @@ impl SparseEval for Interpreted {
 /// Anti-Dirac indicator `delta_bar(v) = 1 - delta(v)`: true when `|v|` exceeds the threshold.
 /// A NaN is not "active".
 #[must_use]
-pub fn indicator(value: f32, threshold: f32) -> bool {
-    value.abs() > threshold
-}
-
-/// The same indicator for f64 values, with the f32 threshold widened exactly.
-#[must_use]
-pub fn indicator_f64(value: f64, threshold: f32) -> bool {
-    value.abs() > f64::from(threshold)
+pub fn indicator<R: Real>(value: R, threshold: f32) -> bool {
+    value.abs() > R::from_f32(threshold)
 }
 
 #[cfg(test)]
@@ -395,7 +399,7 @@ mod tests {
             let expected: f64 = terms.iter().map(|&(c, p, g)| direct(c, p, g, &threshold, &vars64)).sum();
             let magnitude: f64 = terms.iter().map(|&(c, p, g)| direct(c, p, g, &threshold, &vars64).abs()).sum();
             let tolerance = 1e-5 * magnitude.max(1e-12);
-            prop_assert!((model.eval_f64(&vars64) - expected).abs() <= 1e-12 * magnitude.max(1.0));
+            prop_assert!((model.eval_in(&vars64) - expected).abs() <= 1e-12 * magnitude.max(1.0));
             prop_assert!((f64::from(model.eval(&vars)) - expected).abs() <= tolerance);
         }
     }
@@ -413,7 +417,7 @@ mod tests {
         for (gate_value, expected) in [(0.0, 0.0), (1e-4, 0.0), (-1e-4, 0.0), (1.0001e-4, 1.0), (-0.3, 1.0)] {
             vars[3] = gate_value;
             assert_eq!(model.eval(&vars), expected, "gate value {gate_value}");
-            assert_eq!(model.eval_f64(&vars.map(f64::from)), f64::from(expected));
+            assert_eq!(model.eval_in(&vars.map(f64::from)), f64::from(expected));
         }
         vars[3] = f32::NAN;
         assert_eq!(model.eval(&vars), 0.0, "a NaN gate variable is not active");

@@ -241,7 +241,7 @@ fn the_sweep_selects_the_true_support_on_noise_free_data() {
     let model = library.to_sparse_model(&selected.point.coefficients).unwrap();
     assert_eq!(model.n_terms, 4);
     let expected = library.predict(&selected.point.coefficients, &heldout[700]).unwrap();
-    assert!((model.eval_f64(&heldout[700]) - expected).abs() < 1e-6 * expected.abs());
+    assert!((model.eval_in(&heldout[700]) - expected).abs() < 1e-6 * expected.abs());
     // The overrides: by number of terms and by threshold.
     let by_terms = result.select(&score, &SelectionConfig { rule: SelectionRule::NTerms(4), ..Default::default() });
     assert_eq!(by_terms.unwrap().selected().point.support, selected.point.support);

@@ -1,6 +1,6 @@
 //! Candidate libraries: ordered lists of the core's monomials over named variables.
 //!
-//! Every column of the library matrix Theta is computed with [`Monomial::eval_f64`], the
+//! Every column of the library matrix Theta is computed with [`Monomial::eval_in`], the
 //! host's reference evaluation of the core's sparse terms, so the model the host fits is the
 //! model the core evaluates (up to the f32 rounding of the coefficients).
 
@@ -209,7 +209,7 @@ impl Library {
     }
 
     /// The library matrix Theta: one row per sample, one column per term, each entry
-    /// [`Monomial::eval_f64`] of the sample with this library's gate thresholds.
+    /// [`Monomial::eval_in`] of the sample with this library's gate thresholds.
     pub fn theta(&self, samples: &[[f64; MAX_VARS]]) -> Result<DMatrix<f64>, SindyError> {
         if samples.is_empty() {
             return Err(SindyError::EmptyData { what: "samples" });
@@ -219,7 +219,7 @@ impl Library {
         }
         self.check_samples(samples)?;
         let theta = DMatrix::from_fn(samples.len(), self.terms.len(), |row, col| {
-            self.terms[col].eval_f64(&samples[row], &self.gate_threshold)
+            self.terms[col].eval_in(&samples[row], &self.gate_threshold)
         });
         for (col, column) in theta.column_iter().enumerate() {
             if let Some(row) = column.iter().position(|value| !value.is_finite()) {
@@ -237,7 +237,7 @@ impl Library {
             .iter()
             .zip(coeffs)
             .filter(|&(_, &coeff)| coeff != 0.0)
-            .map(|(term, &coeff)| coeff * term.eval_f64(sample, &self.gate_threshold))
+            .map(|(term, &coeff)| coeff * term.eval_in(sample, &self.gate_threshold))
             .sum())
     }
 
@@ -385,7 +385,7 @@ mod tests {
     }
 
     #[test]
-    fn theta_is_monomial_eval_f64_and_the_sparse_model_agrees() {
+    fn theta_is_monomial_eval_in_and_the_sparse_model_agrees() {
         let mut library = plant_library();
         library.gate_where("cmu", |term| term.powers()[0] == 1).unwrap();
         library.set_gate_threshold("cmu", 1e-3).unwrap();
@@ -401,10 +401,10 @@ mod tests {
         assert_eq!(usize::from(model.n_terms), coeffs.iter().filter(|&&c| c != 0.0).count());
         for (row, sample) in samples.iter().enumerate() {
             for (col, term) in library.terms().iter().enumerate() {
-                assert_eq!(theta[(row, col)], term.eval_f64(sample, library.gate_thresholds()));
+                assert_eq!(theta[(row, col)], term.eval_in(sample, library.gate_thresholds()));
             }
             let predicted = library.predict(&coeffs, sample).unwrap();
-            assert!((model.eval_f64(sample) - predicted).abs() <= 1e-12 * predicted.abs().max(1.0));
+            assert!((model.eval_in(sample) - predicted).abs() <= 1e-12 * predicted.abs().max(1.0));
         }
     }
 
