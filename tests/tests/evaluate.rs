@@ -38,6 +38,20 @@ fn replay_writes_every_stage_for_every_sample() {
     let cl_est: f64 = last[14].parse().expect("a finite estimate");
     assert!(cl_est.is_finite());
     assert!(out.join("replay.toml").is_file());
+    // The written estimate follows the balance: the roll run's moment spans about +-0.05, the
+    // balance's noise is 3e-4, and the built-in model's error is near that noise. An estimate
+    // of the wrong sign, scale or column would err by the moment itself.
+    let column =
+        |row: &str, idx: usize| -> f64 { row.split(',').nth(idx).and_then(|v| v.parse().ok()).unwrap_or(f64::NAN) };
+    let (cl_idx, est_idx) = (5, 14);
+    let pairs: Vec<(f64, f64)> = rows.iter().map(|row| (column(row, cl_idx), column(row, est_idx))).collect();
+    let rms = |values: &mut dyn Iterator<Item = f64>| {
+        let (sum, n) = values.fold((0.0, 0usize), |(sum, n), v| (sum + v * v, n + 1));
+        (sum / n.max(1) as f64).sqrt()
+    };
+    let error = rms(&mut pairs.iter().filter(|(cl, _)| cl.is_finite()).map(|(cl, est)| est - cl));
+    let spread = rms(&mut pairs.iter().filter(|(cl, _)| cl.is_finite()).map(|(cl, _)| *cl));
+    assert!(error < 0.1 * spread, "replayed C_l errs {error:.2e} against a moment of {spread:.2e}");
 }
 
 #[test]
