@@ -20,6 +20,9 @@ pub enum CodegenError {
     /// The coefficient set does not pass the blob's validation (non-finite values, bad sizes).
     #[error("the coefficient set is not valid: {0}")]
     Invalid(estimator_core::blob::InvalidSet),
+    /// The set could not be written as a blob (whose hash the header states).
+    #[error("the coefficient set cannot be written as a blob: {0}")]
+    Blob(crate::model::ToBlobError),
     /// rustfmt could not be run or failed.
     #[error("rustfmt: {0}")]
     Rustfmt(String),
@@ -76,8 +79,8 @@ pub fn render(set: &CoefficientSet, provenance: &str) -> Result<String, CodegenE
     ];
     let functions: String =
         models.iter().map(|&(name, what, model, vars)| compiled_model(name, what, model, vars)).collect();
-    let blob = crate::model::encode(set)
-        .map_err(|_| CodegenError::Invalid(estimator_core::blob::InvalidSet("the set does not encode")))?;
+    // Validated above, so only the encoding itself can fail here.
+    let blob = crate::model::encode(set).map_err(CodegenError::Blob)?;
     let terms: Vec<String> =
         models.iter().map(|(_, what, model, _)| format!("{what} {} terms", model.active_terms().len())).collect();
     let source = format!(
