@@ -4,30 +4,32 @@
 //! (paper eq. 11 and its admissibility rules).
 
 use crate::coeffs::{MAX_VARS, coupling_var};
+use crate::real::Real;
 use crate::sparse::{Interpreted, ModelId, SparseEval, SparseModel};
 
-/// Inputs of the coupling operator.
+/// Inputs of the coupling operator, in the scalar `R` (f32 on the target; f64 in the host's
+/// fit, whose regressors are these variables).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CouplingInput {
+pub struct CouplingInput<R = f32> {
     /// Disturbance-model roll moment.
-    pub cl_roll: f32,
+    pub cl_roll: R,
     /// Plant-model roll moment (both jets).
-    pub cl_afc: f32,
+    pub cl_afc: R,
     /// Angle of attack, rad.
-    pub alpha_rad: f32,
+    pub alpha_rad: R,
     /// Total momentum coefficient (port + starboard).
-    pub cmu: f32,
+    pub cmu: R,
     /// Its increment over the step.
-    pub dcmu: f32,
+    pub dcmu: R,
     /// Roll angle, rad.
-    pub phi_rad: f32,
+    pub phi_rad: R,
 }
 
-impl CouplingInput {
+impl<R: Real> CouplingInput<R> {
     /// The variable vector in the order of [`coupling_var`].
     #[must_use]
-    pub fn variables(&self) -> [f32; MAX_VARS] {
-        let mut vars = [0.0; MAX_VARS];
+    pub fn variables(&self) -> [R; MAX_VARS] {
+        let mut vars = [R::ZERO; MAX_VARS];
         vars[coupling_var::CL_ROLL] = self.cl_roll;
         vars[coupling_var::CL_AFC] = self.cl_afc;
         vars[coupling_var::ALPHA] = self.alpha_rad;

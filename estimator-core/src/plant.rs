@@ -51,6 +51,25 @@ impl<R: Real> Plant<R> {
         vars
     }
 
+    /// The variables of step `k` with the moment set to a measured `C_l,AFC[k]` (teacher
+    /// forcing, as the fit's regressors are built: Brunton et al. 2016, the paper's eq. 5),
+    /// then advances the slow state and the last Cmu as [`Plant::step_by`] does.
+    pub fn forced_variables(
+        &mut self,
+        slow_pole: R,
+        cmu_max: R,
+        cmu: R,
+        alpha_rad: R,
+        cl_measured: R,
+    ) -> [R; MAX_VARS] {
+        self.cl = cl_measured;
+        let cmu = crate::min_num(crate::max_num(cmu, R::ZERO), cmu_max);
+        let vars = self.variables(cmu, alpha_rad);
+        self.slow = slow_pole * self.slow + (R::ONE - slow_pole) * cl_measured;
+        self.last_cmu = cmu;
+        vars
+    }
+
     /// Returns `C_l,AFC[k]` and advances to `k + 1` with this step's Cmu, the next moment
     /// given by `model` of the plant's variables: the Cmu limited to `[0, cmu_max]`, the slow
     /// state with `slow_pole`, and a reset when either state leaves +-1 (the second value).
@@ -112,6 +131,26 @@ mod tests {
             last = plant.step(&PRIOR.plant[0], 0.009, 0.0).0;
         }
         assert!((last - 0.01).abs() < 1e-6, "{last}");
+    }
+
+    #[test]
+    fn forced_variables_are_the_free_runs_when_forced_with_its_own_moment() {
+        let params = PRIOR.plant[0];
+        let (mut free, mut forced) = (Plant::<f64>::new(), Plant::<f64>::new());
+        let model = |vars: &[f64; MAX_VARS]| 0.99 * vars[plant_var::CL_AFC] + 0.01 * vars[plant_var::CMU];
+        for k in 0..200 {
+            // Starts blowing at the first sample, and steps beyond the Cmu range.
+            let cmu = [0.004, 0.02, -0.001][k % 3];
+            let alpha_rad = 0.01 * k as f64;
+            let mut seen = [f64::NAN; MAX_VARS];
+            let cl = free.cl();
+            free.step_by(0.9, f64::from(params.cmu_max), cmu, alpha_rad, |vars| {
+                seen = *vars;
+                model(vars)
+            });
+            let vars = forced.forced_variables(0.9, f64::from(params.cmu_max), cmu, alpha_rad, cl);
+            assert_eq!(vars, seen, "step {k}");
+        }
     }
 
     #[test]

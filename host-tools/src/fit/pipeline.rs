@@ -5,7 +5,8 @@
 
 use std::time::Instant;
 
-use estimator_core::coeffs::{CoefficientSet, N_ALPHA, PlantParams, RateFilter, coupling_var};
+use estimator_core::coeffs::{CoefficientSet, N_ALPHA, PlantParams, RateFilter};
+use estimator_core::coupling::CouplingInput;
 use estimator_core::egk::params_at;
 use estimator_core::prior::PRIOR;
 use estimator_core::sparse::SparseModel;
@@ -542,15 +543,16 @@ fn coupling_run(run: &Run, signals: &RunSignals, set: &CoefficientSet, split: &S
         .enumerate()
         .map(|(k, output)| {
             let cmu = signals.cmu[0][k] + signals.cmu[1][k];
-            let mut vars = [0.0; 6];
-            vars[coupling_var::CL_ROLL] = f64::from(output.cl_roll);
-            vars[coupling_var::CL_AFC] = f64::from(output.cl_afc);
-            vars[coupling_var::ALPHA] = signals.alpha_deg[k].to_radians();
-            vars[coupling_var::CMU] = cmu;
-            vars[coupling_var::DCMU] = cmu - last_cmu;
-            vars[coupling_var::PHI] = signals.phi_rad[k];
+            let input = CouplingInput {
+                cl_roll: f64::from(output.cl_roll),
+                cl_afc: f64::from(output.cl_afc),
+                alpha_rad: signals.alpha_deg[k].to_radians(),
+                cmu,
+                dcmu: cmu - last_cmu,
+                phi_rad: signals.phi_rad[k],
+            };
             last_cmu = cmu;
-            vars
+            input.variables()
         })
         .collect();
     let target = outputs.iter().zip(&signals.cl).map(|(output, cl)| cl - f64::from(output.cl_linear)).collect();

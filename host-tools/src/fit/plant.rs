@@ -120,22 +120,15 @@ pub fn plant_library() -> Result<Library, FitError> {
     Ok(library)
 }
 
-/// A run's regressors at every sample for jet `side`, with `cl_afc` taken from `cl_afc` and
-/// the slow state run from it and Cmu clamped to the fitted range, as the core runs them.
+/// A run's regressors at every sample for jet `side`: the core's plant in f64
+/// ([`Plant::forced_variables`]) with its moment set to `cl_afc` at every sample, so that the
+/// slow state, the Cmu limit and `dCmu` are the ones the core runs.
 fn variables(signals: &RunSignals, side: usize, cl_afc: &[f64], shape: Shape) -> Vec<[f64; 6]> {
-    let cmu = &signals.cmu[side];
-    let mut slow = 0.0;
+    let mut plant = Plant::<f64>::new();
     (0..signals.len())
         .map(|k| {
-            let mut vars = [0.0; 6];
-            vars[plant_var::CL_AFC] = cl_afc[k];
-            vars[plant_var::CMU] = cmu[k].clamp(0.0, shape.cmu_max);
-            vars[plant_var::DCMU] =
-                if k == 0 { 0.0 } else { cmu[k].clamp(0.0, shape.cmu_max) - cmu[k - 1].clamp(0.0, shape.cmu_max) };
-            vars[plant_var::ALPHA] = signals.alpha_deg[k].to_radians();
-            vars[plant_var::CL_SLOW] = slow;
-            slow = shape.slow_pole * slow + (1.0 - shape.slow_pole) * cl_afc[k];
-            vars
+            let alpha_rad = signals.alpha_deg[k].to_radians();
+            plant.forced_variables(shape.slow_pole, shape.cmu_max, signals.cmu[side][k], alpha_rad, cl_afc[k])
         })
         .collect()
 }
