@@ -14,10 +14,12 @@
 //! - [`report`], [`plot`]: report folders (Markdown, HTML, SVG, JSON);
 //! - [`model`]: loading `--model` (a model folder or its blob) or the built-in tables;
 //! - [`analysis`]: the paper's superposition table on raw recordings;
-//! - [`reliability`]: the sensor-fault study, the loaders' fuzzer and the soak run.
+//! - [`reliability`]: the sensor-fault study, the loaders' fuzzer and the soak run;
+//! - [`command`]: every subcommand as a function returning a typed summary.
 
 pub mod analysis;
 pub mod codegen;
+pub mod command;
 pub mod diagnose;
 pub mod evaluate;
 pub mod fit;

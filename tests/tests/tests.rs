@@ -14,6 +14,9 @@ mod sindy;
 // Fitting and code generation: committed default tables, reproducibility, missing runs.
 mod fit;
 
+// The command line's library functions on a small campaign, checked on their summaries.
+mod command;
+
 // Replay and evaluation: per-run estimates, report folders, missing kinds of run.
 mod evaluate;
 
