@@ -14,7 +14,7 @@ use firmware_sim::fault::FaultSpec;
 use firmware_sim::sil::{Mode, SilSettings, run_scenario_with_faults};
 use host_tools::reliability::faults::{DETECTION_GOAL_MS, RMS_RATIO_GOAL, StudyConfig, fault_study};
 use host_tools::reliability::fuzz::{FuzzConfig, Target, fuzz};
-use host_tools::reliability::soak::{SoakConfig, soak};
+use host_tools::reliability::soak::{RECOVERED_ERROR_BOUND, SoakConfig, soak};
 
 /// The paper's campaign, shortened: every kind at every alpha, 10 s per run (2 s held out).
 fn short_campaign() -> Dataset {
@@ -130,6 +130,9 @@ fn a_million_soak_steps_stay_finite_and_bounded() {
     println!("{outcome:?}");
     assert_eq!(outcome.steps, 1_000_000);
     assert!(outcome.fault_episodes > 300, "{outcome:?}");
+    // Faults must not leave a trace: 3 s after the last one the estimate is the reference's.
+    assert!(outcome.recovered_steps > 10_000, "{outcome:?}");
+    assert!(outcome.worst_recovered_error <= RECOVERED_ERROR_BOUND, "{outcome:?}");
     assert!(outcome.passed(), "{outcome:?}");
     let [low, high] = outcome.cl_bounds;
     assert!(outcome.worst_abs_cl <= high.max(-low), "{outcome:?}");

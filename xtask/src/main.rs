@@ -173,7 +173,7 @@ fn write_seeds(dir: &std::path::Path, targets: &[host_tools::reliability::fuzz::
 
 /// `soak`: a long run on noisy input with random faults; fails if an estimate leaves its bound.
 fn soak(args: SoakArgs) -> anyhow::Result<()> {
-    use host_tools::reliability::soak::{ERROR_BOUND, SoakConfig, soak};
+    use host_tools::reliability::soak::{RECOVERED_ERROR_BOUND, RECOVERY_STEPS, SoakConfig, soak};
     let (set, source) = host_tools::model::load(args.model.as_deref())?;
     let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get) as u64;
     let config = SoakConfig { steps: args.steps, seed: args.seed, streams: args.streams.unwrap_or(cores) };
@@ -182,7 +182,8 @@ fn soak(args: SoakArgs) -> anyhow::Result<()> {
     spinner.finish_and_clear();
     println!(
         "soak, model {source}: {} steps in {} streams, seed {}, {:.1} s ({:.2e} steps/s); {} fault episodes; \
-         non-finite steps {}; worst |C_l - reference| {:.3e} (bound {ERROR_BOUND}); worst |C_l| {:.3e}; state resets {}",
+         non-finite steps {}; worst |C_l - reference| {:.3e}, {:.3e} on the {} steps {RECOVERY_STEPS} or more after \
+         a fault (bound {RECOVERED_ERROR_BOUND:.0e}); worst |C_l| {:.3e}; state resets {}",
         outcome.steps,
         outcome.streams,
         outcome.seed,
@@ -191,6 +192,8 @@ fn soak(args: SoakArgs) -> anyhow::Result<()> {
         outcome.fault_episodes,
         outcome.non_finite_steps,
         outcome.worst_error,
+        outcome.worst_recovered_error,
+        outcome.recovered_steps,
         outcome.worst_abs_cl,
         outcome.state_resets
     );
@@ -208,7 +211,8 @@ fn soak(args: SoakArgs) -> anyhow::Result<()> {
     );
     anyhow::ensure!(
         outcome.passed(),
-        "the soak failed: an estimate was not finite, left the bound or the envelope, or was limited unflagged"
+        "the soak failed: an estimate was not finite, stayed off the reference after a fault, left the envelope, or was \
+         limited unflagged"
     );
     Ok(())
 }

@@ -1,8 +1,10 @@
 //! The soak run (`cargo xtask soak`): the estimator stepped for a long time on noisy synthetic
 //! input with random faults (NaN, infinities, huge values, out-of-range angles, stuck, biased and
 //! spiking pressure channels, dropped samples), next to a reference estimator stepped on the
-//! same input without the faults. Every estimate must stay finite at every step, and the
-//! faulty estimator's `C_l` must stay within a bound of the reference's.
+//! same input without the faults. Every estimate must stay finite at every step, and once a
+//! fault has been over for [`RECOVERY_STEPS`] the faulty estimator's `C_l` must agree with the
+//! reference's within [`RECOVERED_ERROR_BOUND`]: no fault may leave a lasting trace in the state
+//! (during a fault the envelope below bounds the error).
 //!
 //! The envelope (issue 16 item 6): the faulty estimator's `C_l,roll`, `C_l,linear` and `C_l`
 //! must stay within the coefficient set's envelope with its margin at every step, and every step
@@ -33,9 +35,17 @@ use firmware_sim::campaign::mix_seed;
 use rayon::prelude::*;
 use serde::Serialize;
 
-/// Bound on |`C_l` faulty - `C_l` reference|: the largest roll moment of the wing in the
-/// tunnel is about 0.1, so an error of 1 would be an estimator out of control.
-pub const ERROR_BOUND: f64 = 1.0;
+/// Bound on |`C_l` faulty - `C_l` reference| from [`RECOVERY_STEPS`] after the last fault: a
+/// thirtieth of the balance's noise (about 3e-4), and 1e-4 of the wing's largest moment (0.08).
+/// Every stage forgets its past exponentially once its inputs are sound again, so a state a
+/// fault corrupted for good (a stuck isolation, a wound-up filter, a held Cmu) breaks it;
+/// measured: 3.7e-9 over 10^6 steps and 8.4e-8 over 2 x 10^7, f32 rounding
+/// (`cargo xtask soak --steps 20000000`).
+pub const RECOVERED_ERROR_BOUND: f64 = 1e-5;
+
+/// Steps after the last fault from which the faulty estimator must agree with the reference
+/// again (3 s at 1 kHz).
+pub const RECOVERY_STEPS: u64 = 3_000;
 
 /// Mean number of steps between the starts of two fault episodes.
 const STEPS_PER_FAULT: u64 = 2_000;
@@ -66,6 +76,10 @@ pub struct SoakOutcome {
     pub non_finite_steps: u64,
     /// Largest |`C_l` faulty - `C_l` reference| over every step.
     pub worst_error: f64,
+    /// Steps at least [`RECOVERY_STEPS`] after the last fault ended.
+    pub recovered_steps: u64,
+    /// Largest |`C_l` faulty - `C_l` reference| over the recovered steps.
+    pub worst_recovered_error: f64,
     /// Largest |`C_l`| of the faulty estimator.
     pub worst_abs_cl: f64,
     /// Fault episodes started.
@@ -91,12 +105,13 @@ pub struct SoakOutcome {
 }
 
 impl SoakOutcome {
-    /// True when every estimate stayed finite, the error within [`ERROR_BOUND`], every estimate
-    /// within the envelope and every limited step flagged.
+    /// True when every estimate stayed finite, the error after recovery within
+    /// [`RECOVERED_ERROR_BOUND`], every estimate within the envelope and every limited step
+    /// flagged.
     #[must_use]
     pub fn passed(&self) -> bool {
         self.non_finite_steps == 0
-            && self.worst_error <= ERROR_BOUND
+            && self.worst_recovered_error <= RECOVERED_ERROR_BOUND
             && self.beyond_envelope_steps == 0
             && self.unflagged_limited_steps == 0
     }
@@ -119,6 +134,8 @@ pub fn soak(set: &CoefficientSet, config: &SoakConfig) -> SoakOutcome {
         total.steps += partial.steps;
         total.non_finite_steps += partial.non_finite_steps;
         total.worst_error = total.worst_error.max(partial.worst_error);
+        total.recovered_steps += partial.recovered_steps;
+        total.worst_recovered_error = total.worst_recovered_error.max(partial.worst_recovered_error);
         total.worst_abs_cl = total.worst_abs_cl.max(partial.worst_abs_cl);
         total.fault_episodes += partial.fault_episodes;
         total.state_resets += partial.state_resets;
@@ -183,6 +200,8 @@ impl SoakOutcome {
             seed: 0,
             non_finite_steps: 0,
             worst_error: 0.0,
+            recovered_steps: 0,
+            worst_recovered_error: 0.0,
             worst_abs_cl: 0.0,
             fault_episodes: 0,
             state_resets: 0,
@@ -229,6 +248,7 @@ fn soak_stream(set: &CoefficientSet, steps: u64, seed: u64) -> SoakOutcome {
     let mut cmu = [0.0f32; 2];
     let mut episodes: Vec<Episode> = Vec::new();
     let mut outcome = SoakOutcome { steps, seed, ..SoakOutcome::empty(set) };
+    let mut last_fault_step = 0;
     for step in 0..steps {
         // Slow changes of the operating point: a new alpha every 20 s, new blowing every 0.5 s.
         if step % 20_000 == 0 {
@@ -247,7 +267,11 @@ fn soak_stream(set: &CoefficientSet, steps: u64, seed: u64) -> SoakOutcome {
             apply(episode, &mut input, &mut rng);
             episode.remaining -= 1;
         }
+        if !episodes.is_empty() {
+            last_fault_step = step;
+        }
         episodes.retain(|episode| episode.remaining > 0);
+        let recovered = step >= last_fault_step + RECOVERY_STEPS;
         let (out, out_ref, out_free) = (faulty.step(&input), reference.step(&clean), unbounded.step(&input));
         for estimator in [&mut faulty, &mut reference, &mut unbounded] {
             estimator.note_demand(cmu);
@@ -260,6 +284,10 @@ fn soak_stream(set: &CoefficientSet, steps: u64, seed: u64) -> SoakOutcome {
         let error = (f64::from(out.cl) - f64::from(out_ref.cl)).abs();
         // `max` ignores NaN; a non-finite estimate is counted above.
         outcome.worst_error = outcome.worst_error.max(error);
+        if recovered {
+            outcome.recovered_steps += 1;
+            outcome.worst_recovered_error = outcome.worst_recovered_error.max(error);
+        }
         outcome.worst_abs_cl = outcome.worst_abs_cl.max(f64::from(out.cl).abs());
     }
     outcome
