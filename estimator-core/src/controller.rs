@@ -1,7 +1,7 @@
 //! Controller blocks of the paper's Fig. 4 (King et al.; Williams et al.): a feedforward that
 //! cancels the estimated disturbance moment through the inverted plant model with a causality
 //! filter, `K_d = -F G_p^-1 G_d`, and a PI feedback on the measured roll moment
-//! (domain-models.md section 8).
+//! (Kerstens et al., AIAA J. 49(8), 2011; docs/equations.md, Controller design).
 //!
 //! The plant is the nonlinear SINDy difference equation, so it is inverted numerically at each
 //! step: the jet's Cmu in `[0, Cmu_max]` whose next-step moment meets the demand, by bisection

@@ -2,7 +2,7 @@
 //! from its roll angle, rate and acceleration at the given angle of attack.
 //!
 //! Two flow states, one per half-wing (the vortex-breakdown form of GK for delta wings,
-//! Goman & Khrabrov, J. Aircraft 31(5), 1994; domain-models.md sections 2.4 and 9.1):
+//! Goman & Khrabrov, J. Aircraft 31(5), 1994; docs/equations.md, Extended Goman-Khrabrov model):
 //!
 //! - effective incidence of each half-wing under body-axis roll,
 //!   `a_L,R = atan(tan alpha cos phi) -+ kb asin(sin alpha sin phi)`;
@@ -14,7 +14,7 @@
 //!   C_l,p|p| p_hat |p_hat| + K_v (x_L - x_R) + C_l,0`, where the rate-damping and acceleration terms are the
 //!   "extension" for a rolling motion, and the quadratic damping is the `|phi_dot| phi_dot` term
 //!   of the slender-wing roll models (Elzebda, Nayfeh & Mook, J. Aircraft 26(8), 1989;
-//!   domain-models.md section 2.5).
+//!   docs/equations.md, Slender-wing roll moment forms).
 //!
 //! The input is held over the step that ends at `k` (the sample of step `k`), so the state of
 //! step `k` already responds to the input of step `k`.
@@ -88,7 +88,7 @@ pub struct RollGeometry<R = f32> {
     pub incidence_rate_deg_s: [R; 2],
 }
 
-/// Sideslip and half-wing incidences under body-axis roll (domain-models.md section 1):
+/// Sideslip and half-wing incidences under body-axis roll (docs/equations.md, Kinematics):
 /// `beta = asin(sin alpha sin phi)`, `alpha_b = atan(tan alpha cos phi)`, and the windward
 /// half-wing sees `alpha_b + kb beta`.
 #[must_use]

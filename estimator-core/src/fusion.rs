@@ -1,6 +1,6 @@
 //! Fusion of the eGK and pressure-path estimates into `C_l,roll` by a scalar steady-state
-//! Kalman filter on the eGK's error (domain-models.md section 4, design B, a complementary
-//! filter): `e[k] = rho e[k-1] + w`, observed as `C_l,p - C_l,eGK = e + v`, and
+//! Kalman filter on the eGK's error (docs/equations.md, Fusion and Fusion design: a
+//! complementary filter): `e[k] = rho e[k-1] + w`, observed as `C_l,p - C_l,eGK = e + v`, and
 //! `C_l,roll = C_l,eGK + e_hat`. The eGK carries the fast content and the pressure path the
 //! trend and bias, as the paper's conclusion describes.
 

@@ -1,7 +1,8 @@
 //! The pressure path: a time-shifted (delay-embedded), reduced linear model of the 12 surface
 //! pressures with control inputs (DMDc), corrected every step by the measured pressures through
 //! a steady-state Kalman gain, then mapped linearly to `C_l,roll,p` (paper section III.A after
-//! B. W. Brunton et al., J. Neurosci. Methods 258, 2016; domain-models.md section 3).
+//! B. W. Brunton et al., J. Neurosci. Methods 258, 2016; docs/equations.md, Time-shifted pressure
+//! model and its Kalman filter).
 //!
 //! The gain `K` comes from the discrete algebraic Riccati equation solved in f64 on the host, so
 //! the target propagates no covariance: per step this is `A a + B u`, the 12 innovations, and

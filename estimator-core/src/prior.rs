@@ -50,8 +50,9 @@ const EGK_PRIOR_20: EgkParams = egk_prior(0.739_09, -0.229_29, 0.017_320_5);
 
 /// A first-order plant `C[k+1] = a C[k] + g Cmu[k]` for one jet: a lag of 88 ms, the geometric
 /// middle of the 1 to 3 c/U the circulation of a trailing-edge jet takes to build up
-/// (domain-models.md section 6 \[INF\]), to a roll moment of `sign * 0.01` at the paper's largest
-/// Cmu, 0.009 (the middle of the notes' 0.005 to 0.02, section 6 \[INF\]). It has no slow terms
+/// (docs/equations.md, Actuator and plant magnitudes \[INF\]), to a roll moment of `sign * 0.01` at
+/// the paper's largest Cmu, 0.009 (the middle of the 0.005 to 0.02 given there \[INF\]). It has no
+/// slow terms
 /// (the paper's first-order form).
 ///
 /// A placeholder for tests: no fit starts from it. The plant fit is a sparse regression on the

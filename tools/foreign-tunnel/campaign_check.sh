@@ -6,7 +6,7 @@
 # fails, if a case is not scored, if a sealed truth does not match its hash, or if the clean
 # case names an effect (a wrong name where there is none). The other criteria are printed, not
 # checked: at one case per class they are a sample, and their goals are measured on the full
-# campaign (README, "A second, independent tunnel").
+# campaign (docs/results.md, "The gap diagnosis (issues 7 and 15)").
 #
 #   tools/foreign-tunnel/campaign_check.sh [WORK_DIR] [SEED]   (python3 with numpy and scipy,
 #                                                               a release build of host-tools)

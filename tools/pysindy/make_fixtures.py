@@ -91,7 +91,7 @@ def poly2d(rng):
 
 
 def hold_signal(rng, n, levels, weights, hold_range):
-    """A random-level signal with random hold durations (domain-models.md section 5.4)."""
+    """A random-level signal with random hold durations (docs/equations.md, Sparse regression)."""
     out = np.empty(n)
     k = 0
     while k < n:

@@ -171,7 +171,7 @@ pub struct EgkParams<R = f32> {
     pub clpdot: R,
     /// Quadratic roll damping C_l,p|p| per unit `p_hat |p_hat|`: the rate damping of a slender
     /// wing grows faster than the rate (the `|phi_dot| phi_dot` term of Elzebda, Nayfeh & Mook,
-    /// J. Aircraft 26(8), 1989; domain-models.md section 2.5).
+    /// J. Aircraft 26(8), 1989; docs/equations.md, Slender-wing roll moment forms).
     pub clpp: R,
     /// Vortex-asymmetry gain K_v.
     pub vortex_gain: R,
@@ -183,7 +183,8 @@ pub struct EgkParams<R = f32> {
 
 /// The time-shifted (delay-embedded), reduced linear model of the 12 pressure coefficients
 /// with control inputs (DMDc; Brunton et al. 2016, Proctor et al. 2016), its steady-state
-/// Kalman gain and the linear map to C_l (domain-models.md section 3).
+/// Kalman gain and the linear map to C_l (docs/equations.md, Time-shifted pressure model and its
+/// Kalman filter).
 ///
 /// Reduced state `a`: `a[k+1] = A a[k] + B u[k]`, measured pressures
 /// `Cp[k] = C a[k] + cp_mean + v`; update `a = a_pred + K (Cp - C a_pred - cp_mean)` channel by
@@ -223,7 +224,7 @@ pub struct PressureModel<R = f32> {
     pub cl_offset: [R; N_ALPHA],
 }
 
-/// The fusion filter (domain-models.md section 4, design B): the error of the eGK estimate is
+/// The fusion filter (docs/equations.md, Fusion design): the error of the eGK estimate is
 /// a first-order Gauss-Markov state `e[k+1] = rho e[k] + w`, observed by the pressure path as
 /// `C_l,p - C_l,eGK = e + v`; `C_l,roll = C_l,eGK + e_hat`. The pressure path carries the trend
 /// and bias, the eGK the fast content.
@@ -241,8 +242,9 @@ pub struct FusionParams<R = f32> {
 ///
 /// Why the slow state: a first-order difference equation has one time constant, but the jet's
 /// moment rises fast and then relaxes as the wake's counter-circulation builds up (the turn-on
-/// overshoot of circulation control; domain-models.md section 6). A term linear in `C_l,slow`
-/// closes a second loop, which gives the plant two poles and a zero, the form of that response.
+/// overshoot of circulation control; docs/equations.md, Actuator and plant magnitudes). A term
+/// linear in `C_l,slow` closes a second loop, which gives the plant two poles and a zero, the
+/// form of that response.
 /// A model without slow terms is the paper's eq. 5 exactly, whatever the pole.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct PlantParams {
@@ -275,7 +277,7 @@ pub struct ControllerParams {
 /// a first-order lag with a gain (the valve and plenum; a first-order-plus-dead-time model, the
 /// usual form of a valve's flow response, Seborg, Edgar & Mellichamp, Process Dynamics and
 /// Control, 2nd ed., chapter 6; the `actuator_delay` and `actuator_lag` of the diagnosis
-/// vocabulary, README):
+/// vocabulary, docs/diagnosis.md, Actuator delay and lag):
 /// `Cmu[k] = pole Cmu[k-1] + (1 - pole) gain demand[k - 1 - delay_steps]`,
 /// where `demand[j]` is the demand noted after step `j` ([`crate::Estimator::note_demand`]).
 ///

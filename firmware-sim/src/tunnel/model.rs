@@ -203,9 +203,9 @@ impl Model {
     /// Effective incidence of each half-wing and its rate with roll, rad and rad/s.
     ///
     /// Body-axis roll at incidence alpha gives sideslip `beta = asin(sin alpha sin phi)` and
-    /// body incidence `alpha_b = atan(tan alpha cos phi)` (domain-models.md section 1); the
+    /// body incidence `alpha_b = atan(tan alpha cos phi)` (docs/equations.md, Kinematics); the
     /// windward half-wing sees `alpha_b + kb beta`, and blowing raises the blown side's
-    /// incidence (section 9.2, the physical coupling).
+    /// incidence (docs/equations.md, The synthetic tunnel's model: the physical coupling).
     fn side_incidence(&self, state: &State, cmu_eff: [f64; 2]) -> ([f64; 2], [f64; 2]) {
         let (phi, phi_dot) = (state[idx::PHI], state[idx::PHI_DOT]);
         let (sin_a, tan_a) = (self.alpha_rad.sin(), self.alpha_rad.tan());
@@ -221,7 +221,7 @@ impl Model {
     }
 
     /// Quasi-steady vortex state `x0 = (1 - tanh(k (a - a*))) / 2` (Fischenberg form,
-    /// domain-models.md section 2.2).
+    /// docs/equations.md, Flow state and published time constants).
     fn breakdown_curve(&self, incidence_rad: f64) -> f64 {
         let excess_deg = incidence_rad.to_degrees() - self.aero.breakdown_alpha_deg;
         0.5 * (1.0 - (self.aero.breakdown_steepness_per_deg * excess_deg).tanh())
@@ -264,7 +264,7 @@ impl Model {
 
     /// Quasi-steady jet moment of each side: sub-linear (square-root, jet-flap theory) in Cmu,
     /// an alpha-dependent gain, and a loss of effectiveness when that side's vortex has broken
-    /// down (domain-models.md sections 6 and 9.2).
+    /// down (docs/equations.md, Actuator and plant magnitudes; The synthetic tunnel's model).
     fn jet_target(&self, cmu_eff: [f64; 2], vortex_eff: [f64; 2]) -> [f64; 2] {
         let mut target = [0.0; 2];
         for side in 0..2 {
@@ -318,7 +318,8 @@ impl Model {
     }
 
     /// Aerodynamic roll moment: sideslip stiffness, roll damping and acceleration, vortex
-    /// asymmetry, jets, and the aerodynamic effects (domain-models.md section 9.1).
+    /// asymmetry, jets, and the aerodynamic effects (docs/equations.md, The synthetic tunnel's
+    /// model).
     fn aero_moment(&self, state: &State, phi_ddot: f64, vortex_eff: [f64; 2], cmu_eff: [f64; 2]) -> f64 {
         let phi = state[idx::PHI];
         let p_hat = state[idx::PHI_DOT] * self.half_span_time_s;

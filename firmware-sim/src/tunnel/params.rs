@@ -1,5 +1,6 @@
 //! Physical parameters of the synthetic wind tunnel, with defaults from the paper (section II)
-//! and from `shared/research/domain-models.md` sections 1, 7 and 9.
+//! and from docs/equations.md, "Parameter ranges and sources" (Reference quantities of the
+//! experiment; Magnitudes of the wing and its sensors; The synthetic tunnel's model).
 //!
 //! Every parameter is in SI units (angles in degrees where the name says `_deg`); time
 //! constants are in seconds, not convective times, so that a change of `u_inf_mps` does not
@@ -9,7 +10,7 @@ use serde::Deserialize;
 
 /// Disturbance aerodynamics of the rolling wing: two Goman-Khrabrov vortex states (one per
 /// half-wing), static sideslip stiffness, roll damping and acceleration terms
-/// (domain-models.md section 9.1).
+/// (docs/equations.md, The synthetic tunnel's model).
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct AeroParams {
@@ -58,7 +59,8 @@ impl Default for AeroParams {
 }
 
 /// Blowing actuators (one per trailing edge): valve, aerodynamic response and the physical
-/// interaction with the roll disturbance (domain-models.md sections 6 and 9.2).
+/// interaction with the roll disturbance (docs/equations.md, Actuator and plant magnitudes; The
+/// synthetic tunnel's model).
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct ActuatorParams {
@@ -118,7 +120,7 @@ impl Default for ActuatorParams {
 }
 
 /// Sensors: the 12 upper-surface pressure taps, the balance and the roll encoder
-/// (domain-models.md sections 7 and 9.3).
+/// (docs/equations.md, Magnitudes of the wing and its sensors; The synthetic tunnel's model).
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct SensorParams {

@@ -1,6 +1,6 @@
 //! Attribution on the balance stream: every candidate profiled over its grid on the training
-//! part, compared by a complexity-penalised criterion (BIC on the effective number of samples,
-//! gap-diagnosis.md sections 1.12 and 4.3), forward selection of further effects on the
+//! part, compared by a complexity-penalised criterion (BIC on the effective number of samples;
+//! docs/diagnosis.md, Attribution), forward selection of further effects on the
 //! remainder, a structure probe of what no candidate explains, and the held-out gap with each
 //! effect added.
 
@@ -242,8 +242,9 @@ pub const REMAINDER_PROBE_GROUPS: [&str; 3] = ["static_nonlinearity", "moment_no
 /// Time constants of the `input_dynamics` probe, s: fast, middle and slow, a decade apart.
 const PROBE_TAUS_S: [f64; 3] = [0.02, 0.2, 2.0];
 
-/// A typical roll moment coefficient of the wing (domain-models.md: |C_l| stays under about
-/// 0.06): the unit of the moment's powers in the `moment_nonlinearity` probe.
+/// A typical roll moment coefficient of the wing (docs/equations.md, Magnitudes of the wing and its
+/// sensors: |C_l| stays under about 0.06): the unit of the moment's powers in the
+/// `moment_nonlinearity` probe.
 const TYPICAL_MOMENT: f64 = 0.05;
 
 /// Columns of one probe group (see [`PROBE_GROUPS`]): odd powers of the roll angle, rate

@@ -218,7 +218,7 @@ pub(super) fn describe_structure(
 
 /// Pairs among the leading candidates whose column spans are nearly the same (largest
 /// canonical correlation above [`CONFOUNDED_CORRELATION`]) and whose evidence is close: they
-/// cannot be told apart with this data (gap-diagnosis.md section 4.3 step 7).
+/// cannot be told apart with this data (docs/diagnosis.md, Confounded candidates).
 pub(super) fn confounding(
     ranked: &[Profiled],
     runs: &[streams::RunStreams],

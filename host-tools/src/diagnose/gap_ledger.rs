@@ -1,5 +1,5 @@
 //! The gap ledger ("where"): the classical residual tests of [`super::ledger`] run on the
-//! diagnosis's streams (gap-diagnosis.md section 4.3, stage A): the balance residual's
+//! diagnosis's streams (docs/diagnosis.md, The gap ledger): the balance residual's
 //! whiteness, its cross-correlation and coherence with every input, its spectrum by band, its
 //! energy by regime, and the pressure innovations channel by channel.
 

@@ -1,6 +1,6 @@
 //! The `pressure_lag` family: a first-order lag of the pressure channels (tubing, transducer),
 //! on every channel, on a group of them or on one, each with its own or a shared time constant
-//! (gap-diagnosis.md section 2.6; shared/spec/diagnosis.md).
+//! (docs/diagnosis.md, Pressure lag; shared/spec/diagnosis.md).
 //!
 //! Why the balance is the reference: a lagged channel reads `y` with `tau y' + y = p`, the
 //! true pressure `p`; the pressure filter's one-step innovations hide such a lag, because the
@@ -29,7 +29,7 @@ use super::streams::RunStreams;
 
 /// Shortest and longest time constant searched, s: from a lead (the sim's own alignment can sit
 /// slightly below zero) to a third of a second, beyond any tubing a rig would fly with
-/// (gap-diagnosis.md section 2.6: tens of milliseconds for metres of tube).
+/// (docs/diagnosis.md, Pressure lag: tens of milliseconds for metres of tube).
 pub const TAU_RANGE_S: (f64, f64) = (-0.02, 0.35);
 
 /// A channel with fewer finite samples than this share of its training part takes no part in

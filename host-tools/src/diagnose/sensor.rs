@@ -1,5 +1,5 @@
-//! Sensor candidates, on the pressure filter's per-channel innovations (gap-diagnosis.md
-//! sections 1.6 and 2.6): a tubing lag (the innovation follows `-tau dp/dt`, on every channel or
+//! Sensor candidates, on the pressure filter's per-channel innovations (docs/diagnosis.md,
+//! Sensor checks): a tubing lag (the innovation follows `-tau dp/dt`, on every channel or
 //! on some) and a faulty channel (stuck, dead, biased or spiking: one channel departs from the
 //! other eleven). Gaps here are in Cp units.
 
@@ -156,7 +156,7 @@ pub fn family_summaries(sample_hz: f64) -> Vec<(Effect, String)> {
 
 /// Time constants of the lag candidate, s: a log grid from two samples to half a second (about
 /// five points an octave). A best fit at the longest is no lag, so the grid reaches far beyond a
-/// tube's tens of milliseconds (gap-diagnosis.md section 2.6). Without a least gain, a longer
+/// tube's tens of milliseconds (docs/diagnosis.md, Pressure lag). Without a least gain, a longer
 /// grid takes a slow change of a channel's scale for a lag (a 0.48 s lag at gain 0.19 for a
 /// fifth of a 5 s lag), so lags near half a second are beyond what the family tells.
 fn lag_grid(sample_hz: f64) -> Vec<f64> {
@@ -165,7 +165,7 @@ fn lag_grid(sample_hz: f64) -> Vec<f64> {
 
 /// The lag column of one channel: `LP_tau[expected] - expected`, with `expected` what the
 /// filter run without the channel expects of it (measured minus the judged innovation): a
-/// lagged sensor reads the expected pressure through its lag (gap-diagnosis.md section 2.6,
+/// lagged sensor reads the expected pressure through its lag (docs/diagnosis.md, Pressure lag,
 /// the first-order form).
 fn lag_column(run: &RunStreams, innovation: &[f64], tap: usize, tau_s: f64) -> Vec<f64> {
     let expected: Vec<f64> = run.cp[tap].iter().zip(innovation).map(|(cp, nu)| cp - nu).collect();

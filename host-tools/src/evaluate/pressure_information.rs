@@ -2,7 +2,7 @@
 //! as a linear filter bank allows to predict the eGK's residual on the roll runs, fitted on
 //! the training part and scored on the held-out part.
 //!
-//! Why: the fusion (domain-models.md section 4, design B) can only improve on the eGK with
+//! Why: the fusion (docs/equations.md, Fusion design) can only improve on the eGK with
 //! what the pressures know about the eGK's error. The pressure path is a linear filter of the
 //! same twelve pressures, and the fusion a linear filter of it and of the eGK, so a regression
 //! on every tap, raw and through first-order low-passes spanning the fusion's time scales, plus
@@ -20,7 +20,8 @@ use crate::fit::signals::hold_missing;
 use crate::fit::split::Split;
 
 /// Time constants of the low-passes applied to every tap, s: the fusion's correlation times
-/// (a few ms to a fraction of a second; domain-models.md section 4 puts `T_e` at 0.2 to 1 s).
+/// (a few ms to a fraction of a second; docs/equations.md, Fusion design, puts `T_e` at 0.2 to
+/// 1 s).
 const LOWPASS_TAU_S: [f64; 3] = [0.005, 0.03, 0.2];
 
 /// The bound at one angle of attack.

@@ -8,11 +8,11 @@
 //! that are polynomials of alpha alone (the constant among them), pure squares of `C_l,roll` or
 //! `C_l,AFC`, and terms without a roll-moment factor are excluded. The roll angle may also be a
 //! factor of a roll-moment term, which the paper's pool used in the indicator only: blowing
-//! raises the blown half-wing's incidence (domain-models.md section 9.2) and the roll changes it
-//! through the sideslip `~ sin alpha sin phi`, so the jet's moment carries a product of the
-//! blowing and the roll angle that the models' outputs alone do not. Such a term still vanishes
-//! without roll. The
-//! models' outputs come from replaying the core, as the paper used its models' estimates.
+//! raises the blown half-wing's incidence (docs/equations.md, "The synthetic tunnel's model")
+//! and the roll changes it through the sideslip `~ sin alpha sin phi`, so the jet's moment
+//! carries a product of the blowing and the roll angle that the models' outputs alone do not.
+//! Such a term still vanishes without roll. The models' outputs come from replaying the core,
+//! as the paper used its models' estimates.
 
 use std::ops::Range;
 

@@ -1,8 +1,8 @@
 //! Fit of the fusion filter (estimator_core::fusion): the correlation time of the eGK's error
 //! and the steady-state gain of the scalar Kalman filter that observes it through the pressure
 //! path, chosen on the training samples of the roll runs to minimise the fused estimate's
-//! error against the balance (domain-models.md section 4: "set Q by grid search minimising the
-//! error, then check the innovations").
+//! error against the balance (docs/equations.md, Fusion design: "set Q by grid search minimising
+//! the error, then check the innovations").
 //!
 //! For a given correlation `rho` and a ratio `q / r` of process to measurement noise, the
 //! steady-state gain of the scalar filter solves the scalar Riccati equation

@@ -8,7 +8,7 @@
 //! At 1 kHz, `C_l[k+1]` is nearly `C_l[k]`, so thresholds would act on the identity rather
 //! than on the dynamics; the regression therefore targets the increment
 //! `C_l[k+1] - C_l[k]` and the identity is added back to the `C_l,AFC` term afterwards
-//! (domain-models.md section 5.1, sampling-rate caveat). Regressor and target use the balance
+//! (docs/equations.md, "Sparse regression: sampling, threshold sweep, excitation"). Regressor and target use the balance
 //! moment through a zero-phase low-pass, so that measurement noise in the regressor does not
 //! bias the lag towards zero. Every model of the threshold sweep is simulated open loop over
 //! validation samples (the end of the training part), as the core runs it, and the selection
@@ -43,8 +43,8 @@ pub const PLANT_VARIABLES: [&str; 5] = ["cl_afc", "cmu", "dcmu", "alpha", "cl_sl
 const PAPER_VARIABLES: [&str; 4] = ["cl_afc", "cmu", "dcmu", "alpha"];
 
 /// Time constants of the slow state tried by the fit, s: from a few convective times of a
-/// small wing to the half-second wake relaxation of a large one (domain-models.md section 6
-/// puts the turn-on overshoot's decay at about 1.5 c/U).
+/// small wing to the half-second wake relaxation of a large one (docs/equations.md, "The
+/// synthetic tunnel's model", puts the turn-on overshoot's decay at about 1.5 c/U).
 pub const SLOW_TAU_GRID_S: [f64; 8] = [0.015, 0.025, 0.04, 0.06, 0.1, 0.16, 0.25, 0.4];
 
 /// Largest |C_l,AFC| a simulated candidate may reach before it counts as diverged.

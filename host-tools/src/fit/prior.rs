@@ -5,16 +5,18 @@
 //! The fit is a maximum a posteriori fit ([`super::egk`]): what the data cannot see stays at
 //! the prior (at alpha = 0 the vortex states do not move, at 10 deg they barely do). So no
 //! centre here is a default of the synthetic tunnel (`firmware_sim::tunnel::params`): those
-//! defaults came from the same research notes, and a prior equal to them starts a fit on that
+//! defaults came from the same sources (below), and a prior equal to them starts a fit on that
 //! tunnel at its truth and keeps it there. Where a literature value coincides with the
 //! tunnel's, the centre is the geometric middle of the published range or another published
 //! estimate, as each value says.
 //!
-//! Sections refer to the project's research notes (`shared/research/domain-models.md`), whose
-//! provenance tags are kept: \[PUB\] checked against a primary source, \[SEC\] a secondary one,
-//! \[REC\] recalled, \[INF\] inferred. Time constants are in convective times `c/U` of the
-//! dataset's own root chord and speed (the manifest's `wing.chord_m` and `tunnel.u_inf_mps`),
-//! the unit the GK literature quotes them in (section 2.3).
+//! The sources are in docs/equations.md, "Parameter ranges and sources"; "Flow state",
+//! "Magnitudes" and "Tunnel" below are its sections "Flow state and published time constants",
+//! "Magnitudes of the wing and its sensors" and "The synthetic tunnel's model". Their provenance
+//! tags are kept: \[PUB\] checked against a primary source, \[SEC\] a secondary one, \[REC\]
+//! recalled, \[INF\] inferred. Time constants are in convective times `c/U` of the dataset's own
+//! root chord and speed (the manifest's `wing.chord_m` and `tunnel.u_inf_mps`), the unit the GK
+//! literature quotes them in (Flow state).
 //!
 //! The plant has no prior here: its fit is a sparse regression on the actuation runs, which
 //! a dataset must have (the fit refuses one without them), so the plant of
@@ -32,45 +34,45 @@ pub const N_EGK_PARAMS: usize = 11;
 ///   3.2 either way), so that both ends of [`TAU1_RANGE_CONVECTIVE`] lie one width away;
 /// - ln tau2: 1.5 (a factor of 4.5), wider than the half-range of [`TAU2_RANGE_CONVECTIVE`]
 ///   because the only delta-wing value lies at its lower end;
-/// - a*: 5 deg, twice the half-width of the trailing-edge crossings (section 7) to cover the
+/// - a*: 5 deg, twice the half-width of the trailing-edge crossings (Magnitudes) to cover the
 ///   mapping from crossing to mid-chord (the private `breakdown_deg` below);
 /// - ln k: 1 (a factor of 2.7), between an airfoil's stall and a delta wing's slower
 ///   breakdown travel ([`STEEPNESS_PER_DEG`]);
-/// - kb: 0.5, the notes' whole range 0.7 to 1.5 (section 9.1 \[INF\]) around the estimate;
+/// - kb: 0.5, the whole range 0.7 to 1.5 (Tunnel \[INF\]) around the estimate;
 /// - C_l,beta and C_l,p: 0.2 per rad, larger than the estimates themselves;
 /// - C_l,pdot: 0.05, two thirds of the slender-wing value;
 /// - C_l,p|p|: 2 per unit `p_hat |p_hat|`, the moment of C_l,p's width at a reduced rate of
 ///   0.1, the top of a forced-roll test's (a damping that doubles over the test's rates);
-/// - K_v: 0.05, the notes' whole range 0.01 to 0.05 (sections 7 and 9.1);
+/// - K_v: 0.05, the whole range 0.01 to 0.05 (Magnitudes and Tunnel);
 /// - C_l,0: 0.01, several times the largest asymmetry a model of this size shows.
 pub const EGK_PRIOR_WIDTH: [f64; N_EGK_PARAMS] =
     [std::f64::consts::LN_10 / 2.0, 1.5, 5.0, 1.0, 0.5, 0.2, 0.2, 0.05, 2.0, 0.05, 0.01];
 
 /// GK's relaxation times of a delta wing's vortex breakdown, in `c/U`: about 1.5 from
 /// water-tunnel visualisation and 15 from wind-tunnel forced oscillation, a tenfold gap the
-/// authors could not explain (section 2.3 \[SEC\]; Goman & Khrabrov, J. Aircraft 31(5), 1994).
+/// authors could not explain (Flow state \[SEC\]; Goman & Khrabrov, J. Aircraft 31(5), 1994).
 /// The prior centres on the geometric middle, 4.7 `c/U`, near Ayancik & Mulleners' 4.24
-/// (JFM 2022, section 2.3), rather than on the notes' 3 `c/U` that the tunnel took.
+/// (JFM 2022, Flow state), rather than on the 3 `c/U` that the tunnel took.
 pub const TAU1_RANGE_CONVECTIVE: [f64; 2] = [1.5, 15.0];
 
 /// Published GK input delays, in `c/U`: 0.5 for GK's delta wing, 4.5 for their NACA 0015
-/// and 5 in Jategaonkar's example (section 2.3 [SEC, PUB]). The delta wing's 0.5 is what the
+/// and 5 in Jategaonkar's example (Flow state [SEC, PUB]). The delta wing's 0.5 is what the
 /// tunnel uses (25 ms), so the prior centres on the geometric middle of the range, 1.6 `c/U`;
 /// the width ([`EGK_PRIOR_WIDTH`]) keeps 0.5 within one width.
 pub const TAU2_RANGE_CONVECTIVE: [f64; 2] = [0.5, 5.0];
 
 /// Incidences at which the breakdown of a 65 deg delta wing's vortex reaches the trailing
-/// edge at this Reynolds number, deg (section 7 \[REC\]; Nelson & Pelletier, Prog. Aerosp.
+/// edge at this Reynolds number, deg (Magnitudes \[REC\]; Nelson & Pelletier, Prog. Aerosp.
 /// Sci. 39, 2003).
 pub const TRAILING_EDGE_CROSSING_DEG: [f64; 2] = [20.0, 25.0];
 
 /// Steepness of the breakdown curve, per deg: the 20 per rad of Jategaonkar's GK example
-/// (Flight Vehicle System Identification, 2nd ed., HystTau2.m; section 2.2 \[PUB\]), the one
+/// (Flight Vehicle System Identification, 2nd ed., HystTau2.m; Flow state \[PUB\]), the one
 /// published value of the tanh form, where the tunnel has 0.25 per deg (14 per rad).
 pub const STEEPNESS_PER_DEG: f64 = 20.0 * std::f64::consts::PI / 180.0;
 
 /// Vortex-breakdown asymmetry increment of a 65 deg delta wing at alpha = 20 deg: 0.01 to
-/// 0.03 (section 7 \[REC\]; Nelson & Pelletier 2003). The tunnel takes the top, 0.03.
+/// 0.03 (Magnitudes \[REC\]; Nelson & Pelletier 2003). The tunnel takes the top, 0.03.
 pub const VORTEX_INCREMENT_AT_20_DEG: [f64; 2] = [0.01, 0.03];
 
 /// The dataset's geometry and speed the prior scales with.
@@ -210,7 +212,7 @@ fn geometric_middle([low, high]: [f64; 2]) -> f64 {
 }
 
 /// The breakdown curve's midpoint `a*`, deg. The state is the breakdown's position along the
-/// chord (1: beyond the trailing edge; section 2.1), so its midpoint is the incidence at which
+/// chord (1: beyond the trailing edge; Flow state), so its midpoint is the incidence at which
 /// the breakdown stands at mid-chord, above the trailing-edge crossing: taking the crossing
 /// (the geometric middle of [`TRAILING_EDGE_CROSSING_DEG`], 22.4 deg) where the curve is at
 /// 0.9 puts the midpoint `atanh(0.8) / k` = 3.1 deg higher, at 25.5 deg \[INF\].
@@ -223,7 +225,7 @@ fn breakdown_deg() -> f64 {
 /// edge, `atan(tan a / cos Lambda)`. The incidence that gives the windward edge's normal
 /// incidence at the nominal sweep is `a + kb beta` with `kb = sin(2a) tan(Lambda) / 2`, and a
 /// delta wing's sweep is `tan Lambda = 2c/b`: 0.39 at 10 deg and 0.74 at 20 deg on the paper's
-/// wing, below the notes' 1 (section 9.1 \[INF\], the tunnel's value).
+/// wing, below the 1 of Tunnel (\[INF\], the tunnel's value).
 fn sideslip_gain(geometry: &Geometry, alpha_deg: f64) -> f64 {
     let tan_sweep = 2.0 * geometry.chord_m / geometry.span_m;
     0.5 * (2.0 * alpha_deg.to_radians()).sin() * tan_sweep
@@ -234,13 +236,13 @@ fn sideslip_gain(geometry: &Geometry, alpha_deg: f64) -> f64 {
 /// shifts off the body axis by `c tan^2(eps) beta` (`tan eps = b / 2c`, the half apex angle);
 /// the moment is then `C_l,beta = -C_L tan(eps) / 2 = -C_L b / 4c`, with the lift of
 /// [`Geometry::lift_coefficient`]: -0.11 at 10 deg and -0.23 at 20 deg on the paper's wing,
-/// where the notes (section 7 \[INF\], the tunnel's `-0.0075 alpha_deg`) have -0.075 and -0.15.
+/// where Magnitudes (\[INF\], the tunnel's `-0.0075 alpha_deg`) gives -0.075 and -0.15.
 /// It is zero at alpha = 0, where a flat wing has no lift.
 fn clbeta_per_rad(geometry: &Geometry, alpha_deg: f64) -> f64 {
     -geometry.lift_coefficient(alpha_deg) * geometry.span_m / (4.0 * geometry.chord_m)
 }
 
-/// Roll damping \[INF\]: slender-wing theory's `-pi A / 32` (section 7 \[REC\]; Ribner, NACA
+/// Roll damping \[INF\]: slender-wing theory's `-pi A / 32` (Magnitudes \[REC\]; Ribner, NACA
 /// TN 1423, 1947) is the limit of small aspect ratio, and it equals the tunnel's -0.17 at the
 /// paper's A. Damping is lift from the antisymmetric upwash; at finite A the prior scales it
 /// by Helmbold's lift slope over slender theory's `pi A / 2`, which gives `-K_p / 16`: -0.147
@@ -253,8 +255,8 @@ fn clp(geometry: &Geometry) -> f64 {
 /// slender-wing theory. A flat section of half-span `s` rolling in still air carries
 /// `pi rho s^4 / 8` per unit length (Newman, Marine Hydrodynamics, 1977, section 4.13);
 /// integrated over a delta wing and made dimensionless with `p_hat_dot = p_dot (b/2U)^2` it is
-/// `-pi b c / (80 S)`: -0.078 on the paper's wing, where the notes (section 9.1 \[INF\], the
-/// tunnel) have -0.01.
+/// `-pi b c / (80 S)`: -0.078 on the paper's wing, where Tunnel (\[INF\], the
+/// tunnel) gives -0.01.
 fn clpdot(geometry: &Geometry) -> f64 {
     -std::f64::consts::PI * geometry.span_m * geometry.chord_m / (80.0 * geometry.area_m2)
 }

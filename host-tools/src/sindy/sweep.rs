@@ -1,5 +1,6 @@
 //! The threshold (lambda) sweep: STLS at many thresholds on one QR-reduced problem, with the
-//! models deduplicated by support (domain-models.md section 5.3).
+//! models deduplicated by support (docs/equations.md, Sparse regression: sampling, threshold sweep,
+//! excitation).
 
 use std::collections::HashMap;
 
@@ -45,7 +46,7 @@ pub struct Sweep {
 
 /// `n` thresholds spaced evenly in logarithm from `min_fraction * c_max` to `c_max`, where
 /// `c_max` is the largest |normalised least-squares coefficient| of the full library
-/// (domain-models.md section 5.3: "sweep lambda log-spaced, 1e-4...1 x max|Xi_LS| on
+/// (docs/equations.md, Sparse regression: "sweep lambda log-spaced, 1e-4...1 x max|Xi_LS| on
 /// normalised columns"). Ascending.
 pub fn log_thresholds(
     problem: &QrProblem,

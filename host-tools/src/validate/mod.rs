@@ -1,10 +1,10 @@
-//! The blind validation campaign of the diagnosis (`validate-diagnosis`, issue 7 and
-//! gap-diagnosis.md section 4.6): seeded cases, each a dataset recorded by the synthetic tunnel
-//! with one effect of the vocabulary, no effect, or an effect outside the vocabulary, at a
-//! random angle of attack and a random magnitude (effect RMS from 0.5 to 4 times the noise RMS
-//! of the stream it acts on). The model is fitted on a clean dataset of the same design; the
-//! diagnosis sees only the recording (its provenance keys stripped) and the model; the truth
-//! is sealed (SHA-256 recorded) before the diagnosis runs and read only by the scorer.
+//! The blind validation campaign of the diagnosis (`validate-diagnosis`, issue 7;
+//! docs/diagnosis.md, Validation campaigns): seeded cases, each a dataset recorded by the synthetic
+//! tunnel with one effect of the vocabulary, no effect, or an effect outside the vocabulary, at a
+//! random angle of attack and a random magnitude (effect RMS from 0.5 to 4 times the noise RMS of
+//! the stream it acts on). The model is fitted on a clean dataset of the same design; the diagnosis
+//! sees only the recording (its provenance keys stripped) and the model; the truth is sealed
+//! (SHA-256 recorded) before the diagnosis runs and read only by the scorer.
 //!
 //! The injection is the tunnel's own code (firmware_sim::tunnel::effects: RK4-integrated
 //! continuous-time states, fractional delays), written apart from the diagnosis's candidates.

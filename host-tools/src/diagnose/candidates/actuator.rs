@@ -8,7 +8,7 @@ use super::{BalanceCandidate, Context, Params, Shape, difference, first_order_la
 use crate::diagnose::streams::RunStreams;
 
 /// `actuator_delay`: the plant driven by `Cmu(t - d)`, d from half a sample to 250 ms (a long
-/// pneumatic line at the speed of sound, domain-models.md section 6).
+/// pneumatic line at the speed of sound, docs/equations.md, Actuator and plant magnitudes).
 #[derive(Debug, Clone, Copy)]
 pub struct ActuatorDelay;
 

@@ -1,6 +1,7 @@
-//! What the disturbance model and the superposition lack (G0, G1, G2, G9): a rate damping, a
-//! second slower flow state, the disturbance-actuation interaction, and the recalibration of the
-//! existing blocks' gains that competes with every new effect (gap-diagnosis.md section 4.2).
+//! What the disturbance model and the superposition lack (G0, G4, G9 and the coupling): a rate
+//! damping, a second slower flow state, the disturbance-actuation interaction, and the
+//! recalibration of the existing blocks' gains that competes with every new effect
+//! (docs/diagnosis.md, Candidate families).
 
 use firmware_sim::effect::Effect;
 
@@ -94,7 +95,7 @@ impl BalanceCandidate for VortexLag {
             .collect()
     }
 
-    /// A second, slower flow state (gap-diagnosis.md sections 2.9 and 4.2, G9), in the forms a
+    /// A second, slower flow state (docs/diagnosis.md, Vortex lag, G9), in the forms a
     /// rig can have: a share of the eGK's response through the slower state
     /// (`LP_tau[C_l,eGK] - C_l,eGK`), and a new state driven by one of the disturbance's physical
     /// inputs, acting as itself, `LP_tau[u]`, or as its deficit, `LP_tau[u] - u`.

@@ -1,7 +1,7 @@
 //! The candidate effects of the balance stream: each a physical addition to the sim with a few
-//! parameters, written as regressors of the balance residual (gap-diagnosis.md section 4.2,
-//! groups G0-G9), with a family of forms over its nonlinear parameters (delays, time constants,
-//! frequencies) and discrete choices, profiled by least squares.
+//! parameters, written as regressors of the balance residual (docs/diagnosis.md, Candidate
+//! families, groups G0-G9), with a family of forms over its nonlinear parameters (delays, time
+//! constants, frequencies) and discrete choices, profiled by least squares.
 //!
 //! One type per candidate behind [`BalanceCandidate`]: its forms, its columns (over the whole
 //! run, so the held-out part sees the effect extended exactly as the fit left it) and its
@@ -37,7 +37,7 @@ pub trait BalanceCandidate: Sync + fmt::Debug {
     fn effect(&self) -> Option<Effect>;
 
     /// The experiment that separates this effect from its usual confusers
-    /// (gap-diagnosis.md section 2.11, "separator").
+    /// (docs/diagnosis.md, Effect groups, "separator").
     fn separating_experiment(&self) -> &'static str;
 
     /// The family's regressors in words, for the report (what the grids below are grids of).
@@ -155,7 +155,7 @@ pub enum Shape {
 
 /// How a rate damping grows with the reduced roll rate `p_hat`: the linear derivative, or the
 /// quadratic `p_hat |p_hat|` of separated, high-incidence flow (Elzebda, Nayfeh & Mook, J.
-/// Aircraft 26(8), 1989; domain-models.md section 2.5).
+/// Aircraft 26(8), 1989; docs/equations.md, Slender-wing roll moment forms).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum DampingLaw {
     /// `C_l,p p_hat`.

@@ -1,6 +1,6 @@
-//! The balance's own behaviour (G7, G8): a lightly damped structural mode of balance and sting
-//! excited by the load and the motion, and a slow drift of its zero (gap-diagnosis.md sections
-//! 2.5 and 2.6).
+//! The balance's own behaviour (G3, G7): a lightly damped structural mode of balance and sting
+//! excited by the load and the motion, and a slow drift of its zero (docs/diagnosis.md, Balance
+//! resonance and Bias drift).
 
 use firmware_sim::effect::Effect;
 
@@ -8,7 +8,8 @@ use super::{BalanceCandidate, Context, Params, Shape, log_grid};
 use crate::diagnose::streams::{MODE_DRIVE_CORNERS_HZ, RunStreams};
 
 /// Damping ratios of the balance-resonance candidate: from 0.005 (a bolted steel sting) to 0.1,
-/// the span of "lightly damped" in the contract's definition (gap-diagnosis.md section 2.3); a
+/// the span of "lightly damped" in the contract's definition (docs/diagnosis.md, Balance
+/// resonance); a
 /// more damped "mode" is a broad filter that any error of the sim's dynamics can feed.
 pub const RESONANCE_DAMPING: [f64; 6] = [0.005, 0.01, 0.02, 0.04, 0.07, 0.1];
 

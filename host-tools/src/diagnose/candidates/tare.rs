@@ -1,6 +1,6 @@
-//! What the balance reads besides the aerodynamics (G3, G4): the wing's inertial reaction to
+//! What the balance reads besides the aerodynamics (G1, G2): the wing's inertial reaction to
 //! the roll acceleration and the weight moment of a centre of gravity off the roll axis, when
-//! the tares were not subtracted (gap-diagnosis.md sections 2.3 and 2.4).
+//! the tares were not subtracted (docs/diagnosis.md, Inertial and gravity tares).
 
 use firmware_sim::effect::Effect;
 

@@ -1,5 +1,5 @@
 //! Independence of residual and input: their cross-correlation, with the bound that holds when
-//! both are coloured (`gap-diagnosis.md` §1.3).
+//! both are coloured (docs/diagnosis.md, Cross-correlation with the inputs).
 //!
 //! A peak outside the band at lag `k > 0` means the part of the output caused by `u(t−k)` is not
 //! described by the model (unmodelled dynamics or a wrong delay). Only lags `k ≥ 0` are computed:
@@ -33,7 +33,8 @@ pub struct CrossCorrelation {
     pub max_lag: usize,
     /// `r_eu(k)` for `k = 0..=max_lag`: residual at `t` against input at `t − k`.
     pub ccf: Vec<f64>,
-    /// The per-lag 99 % band `z·√(P/(N R_e(0) R_u(0)))`, valid for coloured signals (§1.3).
+    /// The per-lag 99 % band `z·√(P/(N R_e(0) R_u(0)))`, valid for coloured signals
+    /// (docs/diagnosis.md, Cross-correlation with the inputs).
     pub bound_99: f64,
     /// The 99 % band for the largest `|r_eu(k)|` over all `max_lag + 1` lags (Šidák correction
     /// of [`Self::bound_99`]); this is the band `significant` uses.
@@ -55,12 +56,12 @@ pub struct CrossCorrelation {
 /// `r_eu(k) = R_eu(k)/√(R_e(0) R_u(0))` with `R_eu(k) = (1/N) Σ e[t] u[t−k]`, every product
 /// taken within one demeaned run pair (see [the module docs](super)). Under independence
 /// `r_eu(k)` is asymptotically `N(0, P/(N R_e(0) R_u(0)))` with `P = Σ_k R_e(k) R_u(k)`, which
-/// holds for coloured `e` and `u` (dsmc `validation/cross_correlation.rs`, §1.3); the naive
-/// `z/√N` band, right only when one of them is white, gives many false alarms on two coloured
-/// signals. `P` is estimated with Bartlett weights `1 − |k|/(M+1)` over `|k| ≤ M`, which keeps
-/// the estimate non-negative; `M = max(max_lag, ⌈√N⌉)` so that slowly decaying
-/// autocorrelations (an AR(1) with φ = 0.9 needs tens of lags) are not cut short, which would
-/// make the band too narrow.
+/// holds for coloured `e` and `u` (dsmc `validation/cross_correlation.rs`; docs/diagnosis.md,
+/// Cross-correlation with the inputs); the naive `z/√N` band, right only when one of them is
+/// white, gives many false alarms on two coloured signals. `P` is estimated with Bartlett weights
+/// `1 − |k|/(M+1)` over `|k| ≤ M`, which keeps the estimate non-negative; `M = max(max_lag, ⌈√N⌉)`
+/// so that slowly decaying autocorrelations (an AR(1) with φ = 0.9 needs tens of lags) are not
+/// cut short, which would make the band too narrow.
 ///
 /// Testing `max_lag + 1` lags at 1 % each would raise a false alarm far more often than 1 %, so
 /// `significant` compares the peak with the Šidák family band
@@ -111,8 +112,9 @@ pub fn cross_correlation(
     })
 }
 
-/// Standard deviation of `r_eu(k)` under independence, `√(P/(N R_e(0) R_u(0)))` (§1.3), from
-/// pooled sums of lagged products up to the Bartlett lag `M = auto_e.len() − 1`.
+/// Standard deviation of `r_eu(k)` under independence, `√(P/(N R_e(0) R_u(0)))` (docs/diagnosis.md,
+/// Cross-correlation with the inputs), from pooled sums of lagged products up to the Bartlett lag
+/// `M = auto_e.len() − 1`.
 ///
 /// The sums are `N·R(k)`, so the Bartlett-weighted `Σ_{|k|≤M} (1 − |k|/(M+1)) S_e(k) S_u(k)` is
 /// `N²·P` and dividing it by `N·S_e(0)·S_u(0)` gives the variance.

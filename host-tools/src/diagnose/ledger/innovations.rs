@@ -1,5 +1,6 @@
 //! Kalman-filter innovations per measurement channel, for localising a sensor fault to one
-//! channel (`gap-diagnosis.md` §1.6), and the difference-based noise floor of a channel.
+//! channel (docs/diagnosis.md, Pressure innovations per channel), and the difference-based noise
+//! floor of a channel.
 //!
 //! For a correct filter the innovation `ν` of each channel is white with standard deviation
 //! `√S_ii`. One channel failing these checks points to its port, tube or transducer; all
@@ -68,10 +69,11 @@ pub struct ChannelInnovation {
 /// stuck-value check), `expected_std` the filter's `√S_ii`, assumed constant, `sample_hz` the
 /// sample rate.
 ///
-/// NIS consistency follows kalman-filter.com (§1.6): for `N` samples of one channel,
-/// `N·NIS̄ ~ χ²(N)` under a correct filter, so `NIS̄` is accepted inside the `χ²(N)/N` quantiles.
-/// That assumes independent innovations; a coloured innovation is flagged by `whiteness_p`
-/// (Ljung–Box with `min(20, N/5)` lags, segments pooled as in [`ljung_box`]).
+/// NIS consistency follows kalman-filter.com (docs/diagnosis.md, Pressure innovations per channel):
+/// for `N` samples of one channel, `N·NIS̄ ~ χ²(N)` under a correct filter, so `NIS̄` is accepted
+/// inside the `χ²(N)/N` quantiles. That assumes independent innovations; a coloured innovation is
+/// flagged by `whiteness_p` (Ljung–Box with `min(20, N/5)` lags, segments pooled as in
+/// [`ljung_box`]).
 ///
 /// Never fails: statistics that cannot be computed (no finite sample, `expected_std` not
 /// positive, an invalid `sample_hz`) are `NaN`, and `consistent` is then false.

@@ -1,12 +1,14 @@
 //! The residual ledger: the classical tests a sim-to-real gap diagnosis runs on a model's
-//! residuals (`shared/research/gap-diagnosis.md` §1.2–1.8).
+//! residuals (docs/diagnosis.md, The gap ledger; sections named below are its subsections).
 //!
-//! - [`whiteness`]: residual autocorrelation and the Ljung–Box portmanteau test (§1.2);
-//! - [`crosscorr`]: residual–input cross-correlation with the bound for coloured signals (§1.3);
-//! - [`spectrum`]: Welch spectra, band shares, narrow peaks and residual–input coherence (§1.5);
-//! - [`regimes`]: residual energy per regime bin with stationary-bootstrap intervals (§1.8);
+//! - [`whiteness`]: residual autocorrelation and the Ljung–Box portmanteau test (Whiteness);
+//! - [`crosscorr`]: residual–input cross-correlation with the bound for coloured signals
+//!   (Cross-correlation with the inputs);
+//! - [`spectrum`]: Welch spectra, band shares, narrow peaks and residual–input coherence
+//!   (Spectrum and coherence);
+//! - [`regimes`]: residual energy per regime bin with stationary-bootstrap intervals (Regimes);
 //! - [`innovations`]: per-channel Kalman innovation statistics and the difference-based noise
-//!   floor (§1.6).
+//!   floor (Pressure innovations per channel).
 //!
 //! # Data layout and missing samples
 //!
@@ -59,7 +61,7 @@ use statrs::distribution::{ContinuousCDF, Normal};
 /// Two-sided 99 % quantile of the standard normal, `Φ⁻¹(0.995) ≈ 2.576`.
 ///
 /// Computed from statrs rather than typed in, so every 99 % band in the ledger uses the same
-/// number (§1.2: `±z/√N` with `z = 2.58` at 99 %).
+/// number (Whiteness: `±z/√N` with `z = 2.58` at 99 %).
 pub(crate) fn z_two_sided_99() -> f64 {
     Normal::standard().inverse_cdf(0.995)
 }
@@ -116,7 +118,7 @@ fn demeaned(run: &[f64]) -> Vec<f64> {
 /// Lagged cross-products `Σ a[t]·b[t−k]` for `k = 0..=max_lag`, summed within each run pair
 /// and never across a join, with the number of products at each lag.
 ///
-/// With `a == b` this is the pooled (unnormalised) autocovariance of §1.2.
+/// With `a == b` this is the pooled (unnormalised) autocovariance of the whiteness test.
 pub(crate) fn pooled_lagged_products(pairs: &[(&[f64], &[f64])], max_lag: usize) -> (Vec<f64>, Vec<usize>) {
     let mut sums = vec![0.0; max_lag + 1];
     let mut counts = vec![0usize; max_lag + 1];

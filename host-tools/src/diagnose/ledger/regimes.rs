@@ -1,5 +1,5 @@
 //! Where the residual energy lives: its share and mean square per regime bin, with
-//! block-bootstrap intervals (`gap-diagnosis.md` §1.8).
+//! block-bootstrap intervals (docs/diagnosis.md, Regimes).
 //!
 //! Bins are whatever the caller stratifies by (angle of attack, `|φ|`, `sign(φ̇)` for
 //! hysteresis, blowing on/off, phase in the cycle). Residuals are autocorrelated, so an i.i.d.
@@ -182,11 +182,11 @@ impl PooledBins {
 /// of Patton, Politis & White (2009), as in `arch.bootstrap.optimal_block_length`.
 ///
 /// `b = (2 G²/D)^{1/3} n^{1/3}` with `G = Σ_{|k|≤m} λ(k/m)|k| γ̂_k`, `D = 2 ĝ²`,
-/// `ĝ = Σ_{|k|≤m} λ(k/m) γ̂_k` and the flat-top kernel `λ(x) = min(1, 2(1−|x|))` (§1.8). The
-/// bandwidth `m` is twice the first lag after which `K_n = max(5, log₁₀ n)` autocorrelations in a
-/// row are insignificant (below `2√(log₁₀ n / n)`), capped at `⌈√n⌉ + K_n`; `b` is capped at
-/// `min(3√n, n/3)` and floored at 1. Autocovariances are pooled within segments (each segment
-/// demeaned), normalised by the total `n`.
+/// `ĝ = Σ_{|k|≤m} λ(k/m) γ̂_k` and the flat-top kernel `λ(x) = min(1, 2(1−|x|))`
+/// (docs/diagnosis.md, Regimes). The bandwidth `m` is twice the first lag after which
+/// `K_n = max(5, log₁₀ n)` autocorrelations in a row are insignificant (below `2√(log₁₀ n / n)`),
+/// capped at `⌈√n⌉ + K_n`; `b` is capped at `min(3√n, n/3)` and floored at 1. Autocovariances are
+/// pooled within segments (each segment demeaned), normalised by the total `n`.
 fn politis_white_block_length(values: &[f64], ranges: &[(usize, usize)]) -> f64 {
     let n = values.len();
     let n_f = n as f64;

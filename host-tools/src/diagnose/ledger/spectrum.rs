@@ -1,9 +1,10 @@
 //! The residual in the frequency domain: Welch spectra, power shares per band, narrow peaks
-//! and residual–input coherence (`gap-diagnosis.md` §1.5).
+//! and residual–input coherence (docs/diagnosis.md, Spectrum and coherence).
 //!
 //! A narrow residual peak at a frequency unrelated to the excitation points to a structural
-//! resonance (§2.3); power at harmonics of the forcing points to nonlinearity or hysteresis;
-//! coherence with an input localises unmodelled input dynamics in frequency, for any input.
+//! resonance (docs/diagnosis.md, Balance resonance); power at harmonics of the forcing points to
+//! nonlinearity or hysteresis; coherence with an input localises unmodelled input dynamics in
+//! frequency, for any input.
 //!
 //! All spectra use Welch's method (Welch 1967): periodic Hann windows with 50 % overlap, each
 //! window's mean removed before windowing (scipy's `detrend='constant'`), windows taken inside
@@ -135,7 +136,7 @@ pub struct SpectralPeak {
 }
 
 /// The bin in `[min_hz, max_hz]` whose PSD most exceeds the median of its neighbours, for
-/// resonance detection (§1.5, §2.3).
+/// resonance detection (docs/diagnosis.md, Spectrum and coherence; Balance resonance).
 ///
 /// The local floor is the median of up to [`PEAK_NEIGHBOUR_BINS`] bins on each side (the bin
 /// itself excluded); a median rather than a mean so that the peak's own leakage does not raise
@@ -187,12 +188,13 @@ pub struct Coherence {
 /// Welch coherence `γ²(f) = |Σ E U*|²/(Σ|E|² Σ|U|²)` of paired residual and input segments.
 ///
 /// Under independence `γ² ~ Beta(1, L−1)`, so its `c` quantile is `1 − (1−c)^{1/(L−1)}`
-/// (dsmc `validation/coherence.rs`, §1.5). Overlapping windows are not independent; the
-/// equivalent number is `L = K/(1 + 2 Σ_m (1 − m/K) c_m²)` for `K` windows in one run, with
-/// `c_m` the normalised overlap of the window with itself shifted by `m` steps (Welch 1967;
-/// `c_1 = 1/6` for Hann at 50 %, Harris 1978 table 1). Windows in different runs do not overlap, so for several
-/// runs the sum counts only pairs inside one run: `L = K²/(K + 2 Σ_m n_m c_m²)`, `n_m` the
-/// number of window pairs `m` steps apart; for one run this is the formula above.
+/// (dsmc `validation/coherence.rs`; docs/diagnosis.md, Spectrum and coherence). Overlapping windows
+/// are not independent; the equivalent number is `L = K/(1 + 2 Σ_m (1 − m/K) c_m²)` for `K` windows
+/// in one run, with `c_m` the normalised overlap of the window with itself shifted by `m` steps
+/// (Welch 1967; `c_1 = 1/6` for Hann at 50 %, Harris 1978 table 1). Windows in different runs do
+/// not overlap, so for several runs the sum counts only pairs inside one run:
+/// `L = K²/(K + 2 Σ_m n_m c_m²)`, `n_m` the number of window pairs `m` steps apart; for one run
+/// this is the formula above.
 ///
 /// Returns `None` when the segments do not pair up, the arguments are invalid as for
 /// [`welch_psd`], or there are too few windows for `L > 1`.

@@ -1,5 +1,5 @@
 //! Whiteness of a residual: its autocorrelation and the Ljung–Box portmanteau test
-//! (`gap-diagnosis.md` §1.2).
+//! (docs/diagnosis.md, Whiteness).
 //!
 //! A one-step prediction error or a Kalman innovation of a correct model is white; colour means
 //! the dynamics or the noise model are wrong. For an output-error residual colour may only mean
@@ -23,7 +23,7 @@ pub struct Whiteness {
     pub lags: usize,
     /// Normalised autocorrelation `r(τ)` at lags `1..=lags` (index 0 is lag 1).
     pub acf: Vec<f64>,
-    /// The per-lag 99 % band `z/√N` with `z = Φ⁻¹(0.995) ≈ 2.576` (§1.2). Deliberately not
+    /// The per-lag 99 % band `z/√N` with `z = Φ⁻¹(0.995) ≈ 2.576` (Whiteness). Deliberately not
     /// sysidentpy's `1.96/√(2N−1)`, which is about √2 too narrow.
     pub acf_bound_99: f64,
     /// The Ljung–Box statistic `Q`.
@@ -40,7 +40,7 @@ pub struct Whiteness {
 /// [the module docs](super).
 ///
 /// The autocorrelation is `r(τ) = R(τ)/R(0)` with `R(τ) = (1/N) Σ e[k] e[k−τ]`, every product
-/// taken within one demeaned run (§1.2). The statistic generalises
+/// taken within one demeaned run (docs/diagnosis.md, Whiteness). The statistic generalises
 /// `Q = N(N+2) Σ_{τ=1}^{h} r(τ)²/(N−τ)` (Ljung & Box 1978) to several runs by replacing `N−τ`
 /// with `n_τ`, the number of products at lag `τ`, and centring each `r(τ)` on its mean under
 /// the null (see `null_mean_acf`; for one run this changes `Q` by `O(h/N)`). `Q` is

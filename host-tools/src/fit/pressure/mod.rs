@@ -1,6 +1,6 @@
-//! Fit of the pressure path (paper section III.A; domain-models.md section 3): a time-shifted,
-//! reduced linear model of the 12 surface pressures with control inputs, its steady-state Kalman
-//! filter, and the linear map of the filtered pressures to `C_l,roll,p`.
+//! Fit of the pressure path (paper section III.A; docs/equations.md, Time-shifted pressure model):
+//! a time-shifted, reduced linear model of the 12 surface pressures with control inputs, its
+//! steady-state Kalman filter, and the linear map of the filtered pressures to `C_l,roll,p`.
 //!
 //! 1. Delay embedding (shift-stacking, B. W. Brunton, Johnson, Ojemann & Kutz, J. Neurosci.
 //!    Methods 258, 2016): `z_k = [x_k; x_{k-s}; ...; x_{k-(h-1)s}]`, `x = Cp`, newest block
