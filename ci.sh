@@ -12,10 +12,18 @@ setup() {
     # The toolchain itself comes from rust-toolchain.toml; add what a fresh machine lacks.
     rustup component add rustfmt clippy >/dev/null
     rustup target add thumbv7em-none-eabihf >/dev/null
-    # QEMU runs the firmware (netduinoplus2 = STM32F405) in the tests.
-    if ! command -v qemu-system-arm >/dev/null; then
-        if [ "$(id -u)" = 0 ]; then apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq qemu-system-arm >/dev/null
-        else sudo apt-get update -qq && sudo DEBIAN_FRONTEND=noninteractive apt-get install -y -qq qemu-system-arm >/dev/null; fi
+    # QEMU runs the firmware (netduinoplus2 = STM32F405) in the tests; arm-none-eabi-gcc and
+    # newlib build the C example that flies the estimator's C interface there.
+    local packages=()
+    command -v qemu-system-arm >/dev/null || packages+=(qemu-system-arm)
+    command -v arm-none-eabi-gcc >/dev/null || packages+=(gcc-arm-none-eabi)
+    [ -n "$(arm-none-eabi-gcc -print-file-name=rdimon.specs 2>/dev/null | grep /)" ] \
+        || packages+=(libnewlib-arm-none-eabi)
+    if [ ${#packages[@]} -gt 0 ]; then
+        local sudo=""
+        [ "$(id -u)" = 0 ] || sudo=sudo
+        $sudo apt-get update -qq
+        $sudo env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${packages[@]}" >/dev/null
     fi
     # numpy and scipy run the second, independent tunnel of the `foreign` job (tools/foreign-tunnel).
     python3 -c "import numpy, scipy" 2>/dev/null \

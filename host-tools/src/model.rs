@@ -74,6 +74,18 @@ pub fn load(model: Option<&Path>) -> Result<(CoefficientSet, ModelSource), Model
     Ok((set, ModelSource::File(file)))
 }
 
+/// The blob bytes of `--model` (a model folder or its blob), checked: they decode to a valid set.
+///
+/// # Errors
+///
+/// [`ModelError`] naming the file when it cannot be read or is not a usable blob.
+pub fn blob_bytes(model: &Path) -> Result<Vec<u8>, ModelError> {
+    let file = if model.is_dir() { model.join(BLOB_FILE) } else { model.to_path_buf() };
+    let bytes = std::fs::read(&file).map_err(|source| ModelError::Io { path: file.clone(), source })?;
+    blob::decode(&bytes).map_err(|error| ModelError::Blob { path: file.clone(), error })?;
+    Ok(bytes)
+}
+
 /// Why a coefficient set could not become blob bytes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
 pub enum ToBlobError {

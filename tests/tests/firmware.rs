@@ -34,20 +34,60 @@ fn short_run() -> firmware_sim::dataset::Run {
     dataset.runs.swap_remove(0)
 }
 
+/// Every output field and health bit of a QEMU replay equal to the host's.
+fn assert_bit_identical(replay: &qemu::QemuReplay, steps: usize) {
+    let comparison = &replay.comparison;
+    assert_eq!(comparison.steps, steps);
+    for (name, diff) in firmware_sim::frames::OUTPUT_FIELD_NAMES.iter().zip(comparison.max_abs) {
+        assert!(diff == 0.0, "{name}: QEMU and host replay differ by {diff:e}");
+    }
+    assert_eq!(comparison.health_mismatches, 0, "health bits differ");
+}
+
+/// Issue 18: the C example flies the estimator through the C interface, built with
+/// arm-none-eabi-gcc, bit for bit like the host: with the built-in tables and with the default
+/// model's blob loaded at run time; a blob with a flipped bit makes it exit with
+/// ROLLEST_STATUS_BLOB_CRC_MISMATCH (16), the documented code.
+#[test]
+fn the_c_example_flies_like_the_host_and_refuses_a_flipped_blob() {
+    assert_qemu();
+    let run = &short_run();
+    let dir = tempfile::tempdir().unwrap();
+    let blob = std::fs::read(host_tools::codegen::default_model().join("model.bin")).expect("the committed blob");
+    for blob in [None, Some(blob.clone())] {
+        let program = qemu::Program::CExample { blob };
+        let replay =
+            qemu::qemu_replay(run, Some(2000), dir.path(), Duration::from_secs(120), &program).expect("runs in QEMU");
+        println!("{}", qemu::summary(&replay));
+        assert_bit_identical(&replay, 2000);
+        let trailer = &replay.firmware.trailer;
+        assert!(trailer.stack_used < trailer.stack_size, "the C example's stack overflowed: {trailer:?}");
+        // The C call copies its input and output and dispatches between the two evaluators
+        // (measured: max 2,762 with the built-in tables, 3,405 with the blob).
+        assert!(replay.cost.estimator_max <= MAX_INSTRUCTIONS_LOADED + 500.0, "{:?}", replay.cost);
+    }
+    let mut flipped = blob;
+    flipped[estimator_core::blob::HEADER_LEN + 40] ^= 0x10;
+    let elf = qemu::c_example::build_c_example().expect("builds");
+    let status = qemu::c_example::exit_status(&elf, dir.path(), Some(&flipped)).expect("runs in QEMU");
+    assert_eq!(status, 16, "ROLLEST_STATUS_BLOB_CRC_MISMATCH");
+}
+
 #[test]
 fn firmware_in_qemu_matches_the_host_replay() {
     assert_qemu();
     let run = &short_run();
     let dir = tempfile::tempdir().unwrap();
-    let replay = qemu::qemu_replay(run, Some(2000), dir.path(), Duration::from_secs(120), qemu::SparseCode::Compiled)
-        .expect("runs in QEMU");
+    let replay = qemu::qemu_replay(
+        run,
+        Some(2000),
+        dir.path(),
+        Duration::from_secs(120),
+        &qemu::Program::Firmware(qemu::SparseCode::Compiled),
+    )
+    .expect("runs in QEMU");
     println!("{}", qemu::summary(&replay));
-    let comparison = &replay.comparison;
-    assert_eq!(comparison.steps, 2000);
-    for (name, diff) in firmware_sim::frames::OUTPUT_FIELD_NAMES.iter().zip(comparison.max_abs) {
-        assert!(diff == 0.0, "{name}: firmware and host replay differ by {diff:e}");
-    }
-    assert_eq!(comparison.health_mismatches, 0, "health bits differ");
+    assert_bit_identical(&replay, 2000);
     let trailer = &replay.firmware.trailer;
     assert!(trailer.stack_used > 0 && trailer.stack_used < trailer.stack_size, "stack {trailer:?}");
     assert!(replay.cost.estimator_mean > 100.0 && replay.cost.total_mean >= replay.cost.estimator_mean);

@@ -11,7 +11,7 @@ use firmware_sim::sil::SilResults;
 use super::data::ScenarioArgs;
 use super::{CommandError, Progress, run_named};
 use crate::hil::HilRun;
-use crate::qemu::{QemuReplay, SparseCode};
+use crate::qemu::{Program, QemuReplay, SparseCode};
 
 /// The flags of `sil`.
 #[derive(Debug, Clone, clap::Args)]
@@ -67,8 +67,16 @@ pub struct QemuReplayArgs {
     pub timeout_s: u64,
     /// Read the sparse models from the tables instead of running their generated code (the cost
     /// of a coefficient set loaded at run time).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "c_example")]
     pub interpreted: bool,
+    /// Fly the C example instead of the Rust firmware: the estimator through its C interface
+    /// (estimator-ffi/c-example, built with arm-none-eabi-gcc).
+    #[arg(long = "c-example")]
+    pub c_example: bool,
+    /// With --c-example: the model folder (or its model.bin) whose blob the C program loads at
+    /// run time; without it, the built-in tables fly.
+    #[arg(long, requires = "c_example")]
+    pub model: Option<PathBuf>,
 }
 
 /// The flags of `hil`.
@@ -178,11 +186,21 @@ pub fn qemu_replay(args: &QemuReplayArgs, progress: &dyn Progress) -> Result<Qem
     let dataset = firmware_sim::dataset::load_dataset(&args.data)?;
     let run = run_named(&dataset, &args.run, &args.data)?;
     let timeout = std::time::Duration::from_secs(args.timeout_s);
-    let code = if args.interpreted { SparseCode::Interpreted } else { SparseCode::Compiled };
+    let program = if args.c_example {
+        let blob = match &args.model {
+            Some(path) => Some(crate::model::blob_bytes(path)?),
+            None => None,
+        };
+        Program::CExample { blob }
+    } else if args.interpreted {
+        Program::Firmware(SparseCode::Interpreted)
+    } else {
+        Program::Firmware(SparseCode::Compiled)
+    };
     progress.stage("building the firmware and replaying in QEMU", None);
     let mut done = None;
     firmware_sim::atomic::write_folder::<CommandError>(&args.out, "summary.txt", |tmp| {
-        let replay = crate::qemu::qemu_replay(run, args.samples, tmp, timeout, code)
+        let replay = crate::qemu::qemu_replay(run, args.samples, tmp, timeout, &program)
             .map_err(CommandError::firmware(format!("replaying {} in QEMU", args.run.display())))?;
         let path = tmp.join("summary.txt");
         std::fs::write(&path, crate::qemu::summary(&replay)).map_err(CommandError::write(&path))?;

@@ -2,7 +2,10 @@
 //! STM32F405, writes one run's inputs in the binary frame format
 //! ([`firmware_sim::frames`]), runs the ELF in `qemu-system-arm -machine netduinoplus2` with
 //! semihosting and `-icount shift=0`, and compares every output field with
-//! [`crate::replay::replay_run`] on the same f32 inputs ([`crate::replay::input_at`]).
+//! [`crate::replay::replay_run`] on the same f32 inputs ([`crate::replay::input_at`]); or the
+//! same for the C example that flies the estimator through its C interface ([`c_example`]).
+
+pub mod c_example;
 
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
@@ -310,31 +313,62 @@ pub struct QemuReplay {
     pub cost: StepCost,
     /// Flash and RAM of the ELF.
     pub memory: Memory,
+    /// Whether the program ran the controller after each step (the Rust firmware does, the C
+    /// example does not).
+    pub controller: bool,
 }
 
-/// Builds the firmware, runs the first `n_samples` of `run` in QEMU with its files in `dir`, and
-/// compares with the host replay of the same samples (which interprets the tables).
+/// What flies in QEMU.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Program {
+    /// The Rust firmware over its built-in tables, their sparse models evaluated as `code` says.
+    Firmware(SparseCode),
+    /// The C example over the C interface: the built-in tables, or a blob it loads at run time.
+    CExample {
+        /// A coefficient blob (`model.bin`); `None` flies the built-in tables.
+        blob: Option<Vec<u8>>,
+    },
+}
+
+/// Builds `program`, runs the first `n_samples` of `run` in QEMU with its files in `dir`, and
+/// compares with the host replay of the same samples on the same tables (which interprets
+/// them).
 pub fn qemu_replay(
     run: &Run,
     n_samples: Option<usize>,
     dir: &Path,
     timeout: Duration,
-    code: SparseCode,
+    program: &Program,
 ) -> anyhow::Result<QemuReplay> {
-    let elf = build_firmware(code)?;
+    let (elf, set) = match program {
+        Program::Firmware(code) => (build_firmware(*code)?, estimator_core::coeffs::BUILT_IN),
+        Program::CExample { blob } => {
+            let set = match blob {
+                Some(bytes) => {
+                    estimator_core::blob::decode(bytes).map_err(|error| anyhow::anyhow!("the blob: {error}"))?
+                }
+                None => estimator_core::coeffs::BUILT_IN,
+            };
+            (c_example::build_c_example()?, set)
+        }
+    };
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    if let Program::CExample { blob } = program {
+        c_example::place_blob(dir, blob.as_deref())?;
+    }
     let input = input_bytes(run, n_samples);
     let n = (input.len() - HEADER_LEN) / INPUT_LEN;
     std::fs::File::create(dir.join(INPUT_FILE))
         .and_then(|mut file| file.write_all(&input))
         .with_context(|| format!("writing {}", dir.join(INPUT_FILE).display()))?;
     let firmware = run_firmware(&elf, dir, timeout)?;
-    let mut host = crate::replay::replay_run(&estimator_core::coeffs::BUILT_IN, run);
+    let mut host = crate::replay::replay_run(&set, run);
     host.truncate(n);
     let comparison = compare(&host, &firmware.records);
     let cost = step_cost(&firmware.trailer);
     let memory = memory(&std::fs::read(&elf).with_context(|| format!("reading {}", elf.display()))?)?;
-    Ok(QemuReplay { elf, firmware, comparison, cost, memory })
+    let controller = matches!(program, Program::Firmware(_));
+    Ok(QemuReplay { elf, firmware, comparison, cost, memory, controller })
 }
 
 /// A human-readable summary.
@@ -367,11 +401,13 @@ pub fn summary(replay: &QemuReplay) -> String {
         "instructions per step, estimator:              mean {:.0}, max {:.0}",
         cost.estimator_mean, cost.estimator_max
     );
-    let _ = writeln!(
-        text,
-        "instructions per step, estimator + controller: mean {:.0}, max {:.0}",
-        cost.total_mean, cost.total_max
-    );
+    if replay.controller {
+        let _ = writeln!(
+            text,
+            "instructions per step, estimator + controller: mean {:.0}, max {:.0}",
+            cost.total_mean, cost.total_max
+        );
+    }
     let m = &replay.memory;
     let _ = writeln!(
         text,
