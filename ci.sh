@@ -41,6 +41,8 @@ doc() { RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps; }
 nostd() {
     cargo build -p estimator-core --target thumbv7em-none-eabihf --release
     cargo build -p estimator-core --target thumbv7em-none-eabihf --release --features defmt
+    # The measurement variants of issue 18 (`cargo xtask weigh`): they must keep building.
+    cargo build -p estimator-core --target thumbv7em-none-eabihf --release --features micromath,nalgebra
     cargo build -p firmware-sim --bin firmware --no-default-features --features target --target thumbv7em-none-eabihf --release
     # Link-time proof that Estimator::step has no panic path (firmware-sim/src/bin/panic_check.rs):
     # the link fails if one survives whole-program optimisation.

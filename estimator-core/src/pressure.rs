@@ -347,6 +347,7 @@ fn set_bits(mut mask: u16) -> impl Iterator<Item = usize> {
 // past the model's rank) gives zero.
 
 /// `A a + B u`.
+#[cfg(not(feature = "nalgebra"))]
 #[inline(never)]
 fn predict<R: Real>(
     a: &[[R; PRESSURE_RANK]; PRESSURE_RANK],
@@ -358,12 +359,14 @@ fn predict<R: Real>(
 }
 
 /// `C a + cp_mean`: the pressures the model expects.
+#[cfg(not(feature = "nalgebra"))]
 #[inline(never)]
 fn output<R: Real>(c: &[[R; PRESSURE_RANK]; N_TAPS], cp_mean: &[R; N_TAPS], modes: &[R; PRESSURE_RANK]) -> [R; N_TAPS] {
     core::array::from_fn(|tap| dot(&c[tap], modes) + cp_mean[tap])
 }
 
 /// `a + K nu`: the corrected state.
+#[cfg(not(feature = "nalgebra"))]
 #[inline(never)]
 fn correct<R: Real>(
     gain: &[[R; N_TAPS]; PRESSURE_RANK],
@@ -373,9 +376,41 @@ fn correct<R: Real>(
     core::array::from_fn(|mode| predicted[mode] + dot(&gain[mode], innovation))
 }
 
+/// `A a + B u` by nalgebra (the measurement variant; issue 18).
+#[cfg(feature = "nalgebra")]
+#[inline(never)]
+fn predict<R: Real>(
+    a: &[[R; PRESSURE_RANK]; PRESSURE_RANK],
+    b: &[[R; N_PRESSURE_INPUTS]; PRESSURE_RANK],
+    modes: &[R; PRESSURE_RANK],
+    inputs: &[R; N_PRESSURE_INPUTS],
+) -> [R; PRESSURE_RANK] {
+    let driven = R::mat_vec_add(b, inputs, &[R::ZERO; PRESSURE_RANK]);
+    R::mat_vec_add(a, modes, &driven)
+}
+
+/// `C a + cp_mean` by nalgebra.
+#[cfg(feature = "nalgebra")]
+#[inline(never)]
+fn output<R: Real>(c: &[[R; PRESSURE_RANK]; N_TAPS], cp_mean: &[R; N_TAPS], modes: &[R; PRESSURE_RANK]) -> [R; N_TAPS] {
+    R::mat_vec_add(c, modes, cp_mean)
+}
+
+/// `a + K nu` by nalgebra.
+#[cfg(feature = "nalgebra")]
+#[inline(never)]
+fn correct<R: Real>(
+    gain: &[[R; N_TAPS]; PRESSURE_RANK],
+    predicted: &[R; PRESSURE_RANK],
+    innovation: &[R; N_TAPS],
+) -> [R; PRESSURE_RANK] {
+    R::mat_vec_add(gain, innovation, predicted)
+}
+
 /// Dot product, summed in order. It starts from `-0.0`, the identity of addition
 /// (`-0.0 + x == x` for every `x`, signed zeros included), so the first product is not added
 /// to a zero that would need its own instruction.
+#[cfg_attr(feature = "nalgebra", allow(dead_code))]
 fn dot<R: Real, const N: usize>(a: &[R; N], b: &[R; N]) -> R {
     a.iter().zip(b).fold(R::NEG_ZERO, |sum, (&x, &y)| sum + x * y)
 }

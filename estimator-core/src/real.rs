@@ -83,6 +83,30 @@ pub trait Real:
     const NO_READING_BITS: Self::Bits;
     /// The bit pattern.
     fn bits(self) -> Self::Bits;
+
+    /// `m x + y` for a row-major `N x M` matrix `m`, by nalgebra's fixed-size product (the
+    /// `nalgebra` measurement variant of the pressure filter; issue 18).
+    #[cfg(feature = "nalgebra")]
+    fn mat_vec_add<const N: usize, const M: usize>(m: &[[Self; M]; N], x: &[Self; M], y: &[Self; N]) -> [Self; N];
+}
+
+/// [`Real::mat_vec_add`] with nalgebra: the row-major table viewed as its column-major
+/// transpose, without a copy, and `tr_mul` (each output a dot product of a table row).
+#[cfg(feature = "nalgebra")]
+macro_rules! nalgebra_mat_vec_add {
+    ($t:ty) => {
+        fn mat_vec_add<const N: usize, const M: usize>(m: &[[$t; M]; N], x: &[$t; M], y: &[$t; N]) -> [$t; N] {
+            use nalgebra::{Const, SMatrixView, SVectorView};
+            let transposed = SMatrixView::<$t, M, N>::from_slice_generic(m.as_flattened(), Const::<M>, Const::<N>);
+            let x = SVectorView::<$t, M>::from_slice_generic(x, Const::<M>, Const::<1>);
+            let product = transposed.tr_mul(&x);
+            let mut out = *y;
+            for (out, value) in out.iter_mut().zip(product.iter()) {
+                *out += *value;
+            }
+            out
+        }
+    };
 }
 
 impl Real for f32 {
@@ -122,26 +146,58 @@ impl Real for f32 {
     fn is_nan(self) -> bool {
         f32::is_nan(self)
     }
+    #[cfg(not(feature = "micromath"))]
     #[inline]
     fn sqrt(self) -> Self {
         libm::sqrtf(self)
     }
+    #[cfg(not(feature = "micromath"))]
     #[inline]
     fn exp(self) -> Self {
         crate::exp::exp(self)
     }
+    #[cfg(not(feature = "micromath"))]
     #[inline]
     fn sin_cos(self) -> (Self, Self) {
         crate::trig::sin_cos(self)
     }
+    #[cfg(not(feature = "micromath"))]
     #[inline]
     fn asin(self) -> Self {
         libm::asinf(self)
     }
+    #[cfg(not(feature = "micromath"))]
     #[inline]
     fn atan(self) -> Self {
         libm::atanf(self)
     }
+    #[cfg(feature = "micromath")]
+    #[inline]
+    fn sqrt(self) -> Self {
+        micromath::F32Ext::sqrt(self)
+    }
+    #[cfg(feature = "micromath")]
+    #[inline]
+    fn exp(self) -> Self {
+        micromath::F32Ext::exp(self)
+    }
+    #[cfg(feature = "micromath")]
+    #[inline]
+    fn sin_cos(self) -> (Self, Self) {
+        (micromath::F32Ext::sin(self), micromath::F32Ext::cos(self))
+    }
+    #[cfg(feature = "micromath")]
+    #[inline]
+    fn asin(self) -> Self {
+        micromath::F32Ext::asin(self)
+    }
+    #[cfg(feature = "micromath")]
+    #[inline]
+    fn atan(self) -> Self {
+        micromath::F32Ext::atan(self)
+    }
+    #[cfg(feature = "nalgebra")]
+    nalgebra_mat_vec_add!(f32);
     type Bits = u32;
     const NO_READING_BITS: u32 = 0x7fc0_0000;
     #[inline]
@@ -208,6 +264,8 @@ impl Real for f64 {
     fn atan(self) -> Self {
         libm::atan(self)
     }
+    #[cfg(feature = "nalgebra")]
+    nalgebra_mat_vec_add!(f64);
     type Bits = u64;
     const NO_READING_BITS: u64 = 0x7ff8_0000_0000_0000;
     #[inline]

@@ -50,11 +50,16 @@ pub enum SparseCode {
 /// path. It uses its own target folder (`target/firmware`, or `target/firmware-interpreted`),
 /// so that it can run while another cargo holds the workspace's.
 pub fn build_firmware(code: SparseCode) -> anyhow::Result<PathBuf> {
+    match code {
+        SparseCode::Compiled => build_firmware_with("qemu", "firmware"),
+        SparseCode::Interpreted => build_firmware_with("qemu,interpreted", "firmware-interpreted"),
+    }
+}
+
+/// Builds the QEMU firmware with firmware-sim's `features` (which include `qemu`) in its own
+/// target folder `target/FOLDER`; returns the ELF's path.
+pub fn build_firmware_with(features: &str, folder: &str) -> anyhow::Result<PathBuf> {
     let root = workspace_root();
-    let (folder, features) = match code {
-        SparseCode::Compiled => ("firmware", "qemu"),
-        SparseCode::Interpreted => ("firmware-interpreted", "qemu,interpreted"),
-    };
     let target_dir = root.join("target").join(folder);
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
     let status = Command::new(cargo)
@@ -65,7 +70,7 @@ pub fn build_firmware(code: SparseCode) -> anyhow::Result<PathBuf> {
         .status()
         .context("running cargo to build the firmware")?;
     if !status.success() {
-        bail!("building the firmware failed ({status})");
+        bail!("building the firmware ({features}) failed ({status})");
     }
     Ok(target_dir.join(TARGET).join("firmware").join("firmware"))
 }
