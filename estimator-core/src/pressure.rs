@@ -347,7 +347,7 @@ fn set_bits(mut mask: u16) -> impl Iterator<Item = usize> {
 // past the model's rank) gives zero.
 
 /// `A a + B u`.
-#[cfg(not(feature = "nalgebra"))]
+#[cfg(all(target_os = "none", not(feature = "nalgebra")))]
 #[inline(never)]
 fn predict<R: Real>(
     a: &[[R; PRESSURE_RANK]; PRESSURE_RANK],
@@ -359,14 +359,14 @@ fn predict<R: Real>(
 }
 
 /// `C a + cp_mean`: the pressures the model expects.
-#[cfg(not(feature = "nalgebra"))]
+#[cfg(all(target_os = "none", not(feature = "nalgebra")))]
 #[inline(never)]
 fn output<R: Real>(c: &[[R; PRESSURE_RANK]; N_TAPS], cp_mean: &[R; N_TAPS], modes: &[R; PRESSURE_RANK]) -> [R; N_TAPS] {
     core::array::from_fn(|tap| dot(&c[tap], modes) + cp_mean[tap])
 }
 
 /// `a + K nu`: the corrected state.
-#[cfg(not(feature = "nalgebra"))]
+#[cfg(all(target_os = "none", not(feature = "nalgebra")))]
 #[inline(never)]
 fn correct<R: Real>(
     gain: &[[R; N_TAPS]; PRESSURE_RANK],
@@ -374,6 +374,57 @@ fn correct<R: Real>(
     innovation: &[R; N_TAPS],
 ) -> [R; PRESSURE_RANK] {
     core::array::from_fn(|mode| predicted[mode] + dot(&gain[mode], innovation))
+}
+
+// On the host the same products run column by column ([`by_columns`]): every row's sum gets
+// the same operations in the same order as `dot` (the host replay stays bit-identical to the
+// firmware in QEMU, which the firmware tests check), but the rows are independent chains that
+// the host's vector units run side by side instead of one dependent chain per row (issue 18).
+
+/// `A a + B u`, on the host.
+#[cfg(all(not(target_os = "none"), not(feature = "nalgebra")))]
+fn predict<R: Real>(
+    a: &[[R; PRESSURE_RANK]; PRESSURE_RANK],
+    b: &[[R; N_PRESSURE_INPUTS]; PRESSURE_RANK],
+    modes: &[R; PRESSURE_RANK],
+    inputs: &[R; N_PRESSURE_INPUTS],
+) -> [R; PRESSURE_RANK] {
+    let (from_modes, from_inputs) = (by_columns(a, modes), by_columns(b, inputs));
+    core::array::from_fn(|row| from_modes[row] + from_inputs[row])
+}
+
+/// `C a + cp_mean`, on the host.
+#[cfg(all(not(target_os = "none"), not(feature = "nalgebra")))]
+fn output<R: Real>(c: &[[R; PRESSURE_RANK]; N_TAPS], cp_mean: &[R; N_TAPS], modes: &[R; PRESSURE_RANK]) -> [R; N_TAPS] {
+    let products = by_columns(c, modes);
+    core::array::from_fn(|tap| products[tap] + cp_mean[tap])
+}
+
+/// `a + K nu`, on the host.
+#[cfg(all(not(target_os = "none"), not(feature = "nalgebra")))]
+fn correct<R: Real>(
+    gain: &[[R; N_TAPS]; PRESSURE_RANK],
+    predicted: &[R; PRESSURE_RANK],
+    innovation: &[R; N_TAPS],
+) -> [R; PRESSURE_RANK] {
+    let products = by_columns(gain, innovation);
+    core::array::from_fn(|mode| predicted[mode] + products[mode])
+}
+
+/// `m x` with each row summed as [`dot`] sums it (from `-0.0`, in column order), computed
+/// column by column so that the rows' sums are independent.
+#[cfg(not(target_os = "none"))]
+#[inline(always)]
+fn by_columns<R: Real, const N: usize, const M: usize>(m: &[[R; M]; N], x: &[R; M]) -> [R; N] {
+    let mut sums = [R::NEG_ZERO; N];
+    for (column, &value) in x.iter().enumerate() {
+        for (sum, row) in sums.iter_mut().zip(m) {
+            if let Some(&entry) = row.get(column) {
+                *sum += entry * value;
+            }
+        }
+    }
+    sums
 }
 
 /// `A a + B u` by nalgebra (the measurement variant; issue 18).
@@ -410,7 +461,7 @@ fn correct<R: Real>(
 /// Dot product, summed in order. It starts from `-0.0`, the identity of addition
 /// (`-0.0 + x == x` for every `x`, signed zeros included), so the first product is not added
 /// to a zero that would need its own instruction.
-#[cfg_attr(feature = "nalgebra", allow(dead_code))]
+#[cfg_attr(any(feature = "nalgebra", not(target_os = "none")), allow(dead_code))]
 fn dot<R: Real, const N: usize>(a: &[R; N], b: &[R; N]) -> R {
     a.iter().zip(b).fold(R::NEG_ZERO, |sum, (&x, &y)| sum + x * y)
 }
