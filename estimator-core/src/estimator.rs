@@ -65,6 +65,9 @@ pub struct Input {
 }
 
 /// The estimates of one step.
+///
+/// `repr(C)`: the C interface writes it straight into C's `rollest_output`.
+#[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Output {
     /// `C_l,roll` of the eGK alone.

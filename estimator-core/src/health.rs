@@ -5,6 +5,9 @@ use crate::coeffs::N_TAPS;
 
 /// Per-step health of the estimator. A set flag never means the output is unusable by itself;
 /// it says which input was not used and which value was held instead.
+///
+/// `repr(C)`: the layout of C's `rollest_health` (estimator-ffi).
+#[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Health {

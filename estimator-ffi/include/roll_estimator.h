@@ -102,7 +102,7 @@ enum rollest_status
    */
   ROLLEST_STATUS_STORAGE_TOO_SMALL = 2,
   /**
-   * The storage is not aligned to 8 bytes.
+   * The storage is not aligned to 8 bytes, or an input or output struct not to 4.
    */
   ROLLEST_STATUS_MISALIGNED = 3,
   /**
@@ -208,10 +208,6 @@ typedef struct {
  */
 typedef struct {
   /**
-   * `ROLLEST_HEALTH_*` bits.
-   */
-  uint16_t flags;
-  /**
    * Pressure channels without a finite reading.
    */
   uint16_t cp_missing;
@@ -223,6 +219,10 @@ typedef struct {
    * Pressure channels isolated as faulty (stuck, or rejected for too long).
    */
   uint16_t cp_isolated;
+  /**
+   * `ROLLEST_HEALTH_*` bits.
+   */
+  uint16_t flags;
 } rollest_health;
 
 /**

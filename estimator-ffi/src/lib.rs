@@ -112,17 +112,21 @@ pub unsafe extern "C" fn rollest_step(
     if input.is_null() || output.is_null() {
         return RollestStatus::NullPointer;
     }
+    if !input.is_aligned() || !output.is_aligned() {
+        return RollestStatus::Misaligned;
+    }
     // SAFETY: `storage` as this function's contract states, which is what `live` needs.
     let estimator = match unsafe { live(storage) } {
         Ok(estimator) => estimator,
         Err(status) => return status,
     };
-    // SAFETY: `input` is non-null, so it points to a readable `rollest_input` (this function's
-    // contract); every bit pattern of its floats is valid. Read unaligned: C may pack it.
-    let input = unsafe { input.read_unaligned() };
+    // SAFETY: `input` is non-null and aligned, so it points to a readable `rollest_input` (this
+    // function's contract); every bit pattern of its floats is valid.
+    let input = unsafe { input.read() };
     let estimate = estimator.step(&(&input).into());
-    // SAFETY: `output` is non-null, so it points to a writable `rollest_output`.
-    unsafe { output.write_unaligned(estimate.into()) };
+    // SAFETY: `output` is non-null and aligned, so it points to a writable `rollest_output`,
+    // which has the layout of the core's `Output` (checked at compile time in `types`).
+    unsafe { output.cast::<estimator_core::Output>().write(estimate) };
     RollestStatus::Ok
 }
 

@@ -1,7 +1,7 @@
 //! The estimator in caller-owned storage: every check a pointer from C gets before it is used.
 //!
 //! [`RollestEstimator`] is an opaque, 8-byte aligned block of [`ROLLEST_ESTIMATOR_WORDS`] words
-//! that C declares (`static rollest_estimator est;`) and this crate fills with an [`Engine`]:
+//! that C declares (`static rollest_estimator est;`) and this crate fills with an `Engine`:
 //! the estimator, and for a blob the decoded coefficient set it refers to. The estimator holds a
 //! reference into its own storage, so the storage must not be copied or moved once initialised:
 //! the storage records the address it was initialised at, and every call compares it
@@ -132,7 +132,7 @@ pub(crate) unsafe fn init_loaded(engine: *mut Engine, set: CoefficientSet) {
 
 /// The estimator of an initialised storage, as a closure's argument.
 pub(crate) trait WithEstimator {
-    /// Runs `f` on the estimator, whichever evaluator it has.
+    /// `Estimator::step`, whichever evaluator it has.
     fn step(&mut self, input: &estimator_core::Input) -> estimator_core::Output;
     /// `Estimator::note_demand`.
     fn note_demand(&mut self, cmu_demand: [f32; 2]);

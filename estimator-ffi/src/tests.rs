@@ -190,6 +190,12 @@ fn every_bad_pointer_and_storage_gets_its_code() {
     let blob_null = c::init_blob(&mut *est, size_of::<RollestEstimator>(), std::ptr::null(), 10);
     assert_eq!(blob_null, RollestStatus::NullPointer);
 
+    // Misaligned input and output structs: one byte into aligned buffers.
+    let mut words = vec![0u32; 64];
+    let odd = words.as_mut_ptr().cast::<u8>().wrapping_add(1);
+    assert_eq!(c::step(&mut *est, odd.cast(), &mut out), RollestStatus::Misaligned);
+    assert_eq!(c::step(&mut *est, &input, odd.cast()), RollestStatus::Misaligned);
+
     // Misaligned storage: one byte into an aligned buffer.
     let mut bytes = vec![0u64; size_of::<RollestEstimator>() / 8 + 1];
     let misaligned = bytes.as_mut_ptr().cast::<u8>().wrapping_add(1).cast::<RollestEstimator>();

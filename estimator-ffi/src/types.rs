@@ -7,6 +7,26 @@ use estimator_core::{Health, Input, Output};
 /// Pressure taps per sample.
 pub const ROLLEST_N_TAPS: usize = 12;
 
+// The C output structs have the core's layout, field for field (the core's `Output` and
+// `Health` are `repr(C)`), so a step writes C's output in place, without a copy; checked here at
+// compile time. The input is converted field by field: `repr(C)` on the core's `Input` cost the
+// firmware's step 4 instructions (measured in QEMU), more than the copy costs the C call.
+macro_rules! same_layout {
+    ($c:ty, $core:ty, [$($field:ident),+]) => {
+        const _: () = {
+            assert!(core::mem::size_of::<$c>() == core::mem::size_of::<$core>());
+            assert!(core::mem::align_of::<$c>() == core::mem::align_of::<$core>());
+            $(assert!(core::mem::offset_of!($c, $field) == core::mem::offset_of!($core, $field));)+
+        };
+    };
+}
+same_layout!(RollestHealth, Health, [cp_missing, cp_rejected, cp_isolated, flags]);
+same_layout!(
+    RollestOutput,
+    Output,
+    [cl_egk, cl_pressure, cl_roll, cl_afc_port, cl_afc_stbd, cl_afc, cl_linear, coupling, cl, phi_dot_rad_s, health]
+);
+
 /// The measurements of one step. Any value may be NaN: not measured this step (it is held and
 /// flagged, never propagated).
 #[repr(C)]
@@ -41,14 +61,14 @@ impl From<&RollestInput> for Input {
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct RollestHealth {
-    /// `ROLLEST_HEALTH_*` bits.
-    pub flags: u16,
     /// Pressure channels without a finite reading.
     pub cp_missing: u16,
     /// Pressure channels whose innovation failed the gate.
     pub cp_rejected: u16,
     /// Pressure channels isolated as faulty (stuck, or rejected for too long).
     pub cp_isolated: u16,
+    /// `ROLLEST_HEALTH_*` bits.
+    pub flags: u16,
 }
 
 impl From<Health> for RollestHealth {
@@ -143,7 +163,7 @@ pub enum RollestStatus {
     /// The storage is smaller than `sizeof(rollest_estimator)` of this library (the header and
     /// the library differ).
     StorageTooSmall = 2,
-    /// The storage is not aligned to 8 bytes.
+    /// The storage is not aligned to 8 bytes, or an input or output struct not to 4.
     Misaligned = 3,
     /// The storage holds no estimator: not initialised, or its initialisation failed.
     NotInitialised = 4,
@@ -212,7 +232,7 @@ impl RollestStatus {
             Self::Ok => c"ok",
             Self::NullPointer => c"a pointer argument is NULL",
             Self::StorageTooSmall => c"the storage is smaller than this library's rollest_estimator",
-            Self::Misaligned => c"the storage is not aligned to 8 bytes",
+            Self::Misaligned => c"the storage is not aligned to 8 bytes, or an input or output struct not to 4",
             Self::NotInitialised => c"the storage holds no estimator (not initialised, or initialisation failed)",
             Self::Moved => c"the estimator was copied or moved after initialisation",
             Self::BlobTooShort => c"blob: shorter than its header",
