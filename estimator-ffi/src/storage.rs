@@ -130,7 +130,8 @@ pub(crate) unsafe fn init_loaded(engine: *mut Engine, set: CoefficientSet) {
     }
 }
 
-/// The estimator of an initialised storage, as a closure's argument.
+/// What the C calls do with the estimator of an initialised storage, whichever evaluator it
+/// has.
 pub(crate) trait WithEstimator {
     /// `Estimator::step`, whichever evaluator it has.
     fn step(&mut self, input: &estimator_core::Input) -> estimator_core::Output;

@@ -71,17 +71,6 @@ pub struct RollestHealth {
     pub flags: u16,
 }
 
-impl From<Health> for RollestHealth {
-    fn from(health: Health) -> Self {
-        Self {
-            flags: health.flags,
-            cp_missing: health.cp_missing,
-            cp_rejected: health.cp_rejected,
-            cp_isolated: health.cp_isolated,
-        }
-    }
-}
-
 /// The estimates of one step.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -108,24 +97,6 @@ pub struct RollestOutput {
     pub phi_dot_rad_s: f32,
     /// What was missing, rejected, held or reset.
     pub health: RollestHealth,
-}
-
-impl From<Output> for RollestOutput {
-    fn from(output: Output) -> Self {
-        Self {
-            cl_egk: output.cl_egk,
-            cl_pressure: output.cl_pressure,
-            cl_roll: output.cl_roll,
-            cl_afc_port: output.cl_afc_port,
-            cl_afc_stbd: output.cl_afc_stbd,
-            cl_afc: output.cl_afc,
-            cl_linear: output.cl_linear,
-            coupling: output.coupling,
-            cl: output.cl,
-            phi_dot_rad_s: output.phi_dot_rad_s,
-            health: output.health.into(),
-        }
-    }
 }
 
 /// A roll angle held (missing or not finite).
