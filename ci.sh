@@ -4,9 +4,11 @@
 # again: every install step is idempotent.
 #
 #   ./ci.sh          all jobs
-#   ./ci.sh JOB ...  some of: setup fmt clippy test doc nostd foreign
+#   ./ci.sh JOB ...  some of: setup fmt clippy test doc nostd python foreign
 set -euo pipefail
 cd "$(dirname "$0")"
+# The virtual environment of the `python` job.
+VENV="$(pwd)/${CARGO_TARGET_DIR:-target}/python-venv"
 
 setup() {
     # The toolchain itself comes from rust-toolchain.toml; add what a fresh machine lacks.
@@ -28,6 +30,10 @@ setup() {
     # numpy and scipy run the second, independent tunnel of the `foreign` job (tools/foreign-tunnel).
     python3 -c "import numpy, scipy" 2>/dev/null \
         || python3 -m pip install --quiet --disable-pip-version-check -r tools/foreign-tunnel/requirements.txt
+    # The `python` job's virtual environment: pytest, pandas and mypy for the rollest package's
+    # suite (the package itself is installed there by that job, as the README says).
+    [ -x "$VENV/bin/python" ] || python3 -m venv "$VENV"
+    "$VENV/bin/pip" install --quiet --disable-pip-version-check -r python/requirements-test.txt
 }
 
 fmt() { cargo fmt --all -- --check; }
@@ -49,6 +55,16 @@ nostd() {
     cargo build -p firmware-sim --bin panic_check --no-default-features --features target --target thumbv7em-none-eabihf --profile firmware
 }
 
+# The Python package (issue 19): installed as the README says, its pytest suite against the
+# command line, its type stubs against the built module (mypy's stubtest), the wrappers typed.
+python() {
+    cargo build --release -p host-tools
+    "$VENV/bin/pip" install --quiet --disable-pip-version-check ./python
+    ROLLEST_HOST_TOOLS="${CARGO_TARGET_DIR:-target}/release/host-tools" "$VENV/bin/pytest" -q python/tests
+    (cd "$VENV" && bin/python -m mypy.stubtest rollest._rollest)
+    "$VENV/bin/python" -m mypy --strict --no-incremental python/rollest
+}
+
 # Datasets from a second tunnel written apart from firmware-sim's (other equations, excitation,
 # noise and file conventions): fit a clean recording, then every injectable effect must be named;
 # then a slice of a blind campaign, every case on its own seed (campaign_check.sh).
@@ -59,7 +75,7 @@ foreign() {
 }
 
 jobs=("$@")
-[ ${#jobs[@]} -gt 0 ] || jobs=(setup fmt clippy test doc nostd foreign)
+[ ${#jobs[@]} -gt 0 ] || jobs=(setup fmt clippy test doc nostd python foreign)
 for job in "${jobs[@]}"; do
     echo "== ci: $job"
     "$job"

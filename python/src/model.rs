@@ -1,0 +1,202 @@
+//! `Model`: a coefficient set with its model folder's files (blob, card, report, plots), loaded,
+//! fitted or built in; saved as a model folder the command line reads; replayed over a dataset.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use estimator_core::CoefficientSet;
+use firmware_sim::campaign::mix_seed;
+use firmware_sim::fault::{FaultSpec, apply_to_run};
+use host_tools::model::ModelError;
+use numpy::PyArray1;
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::{PyBytes, PyDict};
+
+use crate::dataset::Dataset;
+use crate::error::other_error;
+use crate::estimator::outputs_dict;
+
+/// The blob's file name in a model folder.
+const BLOB_FILE: &str = "model.bin";
+
+/// A model (the Python package's `Model` wraps it).
+#[pyclass(module = "rollest._rollest", frozen)]
+pub struct Model {
+    pub(crate) set: Arc<CoefficientSet>,
+    /// Where it came from, for reports.
+    source: String,
+    /// The folder it was read from (None for the built-in tables).
+    folder: Option<PathBuf>,
+    /// The folder's files, read when loaded (so that saving does not depend on the folder
+    /// staying as it was): name and bytes.
+    files: Vec<(String, Vec<u8>)>,
+}
+
+impl Model {
+    /// Reads a model folder (or its model.bin): the set, and every file of the folder.
+    pub(crate) fn read(path: &Path) -> Result<Self, ModelError> {
+        let (set, source) = host_tools::model::load(Some(path))?;
+        let folder =
+            if path.is_dir() { path.to_path_buf() } else { path.parent().unwrap_or(Path::new(".")).to_path_buf() };
+        let io = |path: &Path| {
+            let path = path.to_path_buf();
+            move |source| ModelError::Io { path, source }
+        };
+        let mut files = Vec::new();
+        if path.is_dir() {
+            for entry in std::fs::read_dir(path).map_err(io(path))? {
+                let entry = entry.map_err(io(path))?;
+                let name = entry.file_name().to_string_lossy().into_owned();
+                if entry.file_type().map_err(io(&entry.path()))?.is_file() && !name.starts_with('.') {
+                    files.push((name, std::fs::read(entry.path()).map_err(io(&entry.path()))?));
+                }
+            }
+            files.sort();
+        } else {
+            files.push((BLOB_FILE.to_owned(), std::fs::read(path).map_err(io(path))?));
+        }
+        Ok(Self { set: Arc::new(set), source: source.to_string(), folder: Some(folder), files })
+    }
+
+    fn file(&self, name: &str) -> Option<String> {
+        self.files.iter().find(|(file, _)| file == name).map(|(_, bytes)| String::from_utf8_lossy(bytes).into_owned())
+    }
+}
+
+#[pymethods]
+impl Model {
+    /// Reads a model folder (or its model.bin).
+    #[staticmethod]
+    fn load(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
+        py.detach(|| Self::read(&path)).map_err(|error| other_error(&error))
+    }
+
+    /// The tables compiled into the estimator.
+    #[staticmethod]
+    fn built_in() -> PyResult<Self> {
+        let set = estimator_core::coeffs::DEFAULT;
+        let blob = host_tools::model::encode(&set).map_err(|error| other_error(&error))?;
+        Ok(Self {
+            set: Arc::new(set),
+            source: host_tools::model::ModelSource::BuiltIn.to_string(),
+            folder: None,
+            files: vec![(BLOB_FILE.to_owned(), blob)],
+        })
+    }
+
+    /// Where it came from.
+    #[getter]
+    fn source(&self) -> String {
+        self.source.clone()
+    }
+
+    /// The folder it was read from (None for the built-in tables).
+    #[getter]
+    fn folder(&self) -> Option<PathBuf> {
+        self.folder.clone()
+    }
+
+    /// The fixed step, s.
+    #[getter]
+    fn dt_s(&self) -> f32 {
+        self.set.dt_s
+    }
+
+    /// Writes the model folder (every file it was read with; model.bin alone for the built-in
+    /// tables), complete or not at all.
+    fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        let files = &self.files;
+        let written = py.detach(|| {
+            firmware_sim::atomic::write_folder::<ModelError>(&path, BLOB_FILE, |tmp| {
+                for (name, bytes) in files {
+                    std::fs::write(tmp.join(name), bytes)
+                        .map_err(|source| ModelError::Io { path: path.join(name), source })?;
+                }
+                Ok(())
+            })
+        });
+        written.map_err(|error| other_error(&error))
+    }
+
+    /// The coefficient set as JSON (every table by its field name).
+    fn coefficients_json(&self) -> PyResult<String> {
+        serde_json::to_string(&*self.set).map_err(|error| other_error(&error))
+    }
+
+    /// The model card (model.md), when the folder has one.
+    fn card(&self) -> Option<String> {
+        self.file("model.md")
+    }
+
+    /// model.json (the fit's report, the held-out table among it), when the folder has one.
+    fn model_json(&self) -> Option<String> {
+        self.file("model.json")
+    }
+
+    /// The blob (what `rollest_init_blob` and the firmware load).
+    fn blob<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyBytes>> {
+        let blob = host_tools::model::encode(&self.set).map_err(|error| other_error(&error))?;
+        Ok(PyBytes::new(py, &blob))
+    }
+
+    /// Replays every run of `dataset` (in parallel, without the GIL) as `host-tools replay`
+    /// does, with the sensor `faults` of `--fault` when given; per run, the replay file's
+    /// columns as arrays.
+    #[pyo3(signature = (dataset, faults = Vec::new(), fault_seed = 1))]
+    fn replay<'py>(
+        &self,
+        py: Python<'py>,
+        dataset: &Dataset,
+        faults: Vec<String>,
+        fault_seed: u64,
+    ) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        use rayon::prelude::*;
+        let faults: Vec<FaultSpec> = faults
+            .iter()
+            .map(|spec| spec.parse().map_err(|error| PyValueError::new_err(format!("fault {spec:?}: {error}"))))
+            .collect::<PyResult<_>>()?;
+        let (set, data) = (&*self.set, &dataset.inner);
+        let replayed: Vec<_> = py.detach(|| {
+            data.runs
+                .par_iter()
+                .enumerate()
+                .map(|(idx, run)| {
+                    let run = if faults.is_empty() {
+                        std::borrow::Cow::Borrowed(run)
+                    } else {
+                        std::borrow::Cow::Owned(apply_to_run(run, &faults, mix_seed(fault_seed, idx as u64)))
+                    };
+                    let outputs = host_tools::replay::replay_run(set, &run);
+                    (run, outputs)
+                })
+                .collect()
+        });
+        replayed
+            .iter()
+            .map(|(run, outputs)| {
+                let columns = outputs_dict(py, outputs)?;
+                let channels = &run.channels;
+                let alpha: Vec<f64> = (0..channels.len()).map(|k| channels.alpha_at(k, run.meta.alpha_deg)).collect();
+                for (name, values) in [
+                    ("t_s", &channels.t_s),
+                    ("phi_deg", &channels.phi_deg),
+                    ("alpha_deg", &alpha),
+                    ("cmu_port", &channels.cmu_port),
+                    ("cmu_stbd", &channels.cmu_stbd),
+                    ("cl", &channels.cl),
+                ] {
+                    columns.set_item(name, PyArray1::from_slice(py, values))?;
+                }
+                Ok(columns)
+            })
+            .collect()
+    }
+}
+
+impl Model {
+    /// The model a command wrote into `folder`.
+    pub(crate) fn from_folder(folder: &Path) -> PyResult<Self> {
+        Self::read(folder).map_err(|error| other_error(&error))
+    }
+}

@@ -1,0 +1,46 @@
+"""Fixtures of the rollest test suite: a short synthetic campaign, a model fitted on it, and
+the ``host-tools`` command line the package is compared with."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+from pathlib import Path
+
+import pytest
+
+import rollest
+
+WORKSPACE = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="session")
+def host_tools() -> Path:
+    """The command line (``ROLLEST_HOST_TOOLS``, else the workspace's release build, built if
+    absent)."""
+    given = os.environ.get("ROLLEST_HOST_TOOLS")
+    if given:
+        return Path(given)
+    binary = WORKSPACE / "target" / "release" / "host-tools"
+    if not binary.exists():
+        subprocess.run(["cargo", "build", "--release", "-p", "host-tools"], cwd=WORKSPACE, check=True)
+    return binary
+
+
+def cli(host_tools: Path, *args: object) -> str:
+    """Runs a ``host-tools`` subcommand; its standard output."""
+    done = subprocess.run([str(host_tools), *map(str, args)], capture_output=True, text=True)
+    assert done.returncode == 0, f"host-tools {args}: {done.stderr}"
+    return done.stdout
+
+
+@pytest.fixture(scope="session")
+def campaign(tmp_path_factory: pytest.TempPathFactory) -> rollest.Dataset:
+    """Three kinds of run at three angles of attack, 20 s each, seed 7."""
+    return rollest.simulate(tmp_path_factory.mktemp("data") / "campaign", seed=7, duration_s=20.0)
+
+
+@pytest.fixture(scope="session")
+def model(campaign: rollest.Dataset, tmp_path_factory: pytest.TempPathFactory) -> rollest.Model:
+    """The model fitted on the campaign, in-process."""
+    return rollest.fit(campaign, tmp_path_factory.mktemp("models") / "model")
