@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import shutil
+import subprocess
+import sys
 import threading
 import time
 from pathlib import Path
@@ -197,3 +199,15 @@ def test_evaluate_and_diagnose_write_the_command_lines_results(campaign, model, 
     diagnosis = rollest.diagnose(campaign, tmp_path / "diagnosis", model)
     assert diagnosis.verdict in {"none", "named", "unexplained"}
     assert diagnosis.page.exists() and "effects" in diagnosis.results
+
+
+def test_the_readme_example_runs_as_printed(campaign, tmp_path):
+    example = Path(__file__).resolve().parents[1] / "examples" / "quickstart.py"
+    body = example.read_text().split('"""', 2)[2].lstrip("\n")
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    assert body in readme, "the README's example is python/examples/quickstart.py"
+    done = subprocess.run(
+        [sys.executable, str(example), str(campaign.path), str(tmp_path / "model")], capture_output=True, text=True
+    )
+    assert done.returncode == 0, done.stderr
+    assert "held-out RMS" in done.stdout and "C_l = " in done.stdout
