@@ -61,14 +61,52 @@ pub const REPLAY_MARKER: &str = "replay.toml";
 /// stage's output and the health flags.
 pub const REPLAY_COLUMNS: [&str; 20] = replay_columns();
 
-/// The recorded columns a replay file repeats.
-const RECORDED_COLUMNS: [&str; 6] = ["t_s", "phi_deg", "alpha_deg", "cmu_port", "cmu_stbd", "cl"];
+/// The recorded columns a replay file repeats ([`recorded_at`]).
+pub const RECORDED_COLUMNS: [&str; 6] = ["t_s", "phi_deg", "alpha_deg", "cmu_port", "cmu_stbd", "cl"];
 
-/// The health columns.
-const HEALTH_COLUMNS: [&str; 4] = ["health_flags", "cp_missing", "cp_rejected", "cp_isolated"];
+/// The estimates' columns: [`Output::ESTIMATE_NAMES`], the estimate `cl` renamed `cl_est` so it
+/// does not clash with the balance's `cl`.
+pub const ESTIMATE_COLUMNS: [&str; 10] = estimate_columns();
 
-/// Recorded columns, then [`Output::ESTIMATE_NAMES`] (the estimate `cl` renamed `cl_est` so it
-/// does not clash with the balance's `cl`), then the health columns.
+/// The health columns ([`health_at`]).
+pub const HEALTH_COLUMNS: [&str; 4] = ["health_flags", "cp_missing", "cp_rejected", "cp_isolated"];
+
+/// The recorded values of sample `k` a replay file repeats, in the order of [`RECORDED_COLUMNS`]
+/// (the angle of attack per sample: the column where finite, else the run's).
+#[must_use]
+pub fn recorded_at(run: &Run, k: usize) -> [f64; 6] {
+    let channels = &run.channels;
+    [
+        channels.t_s[k],
+        channels.phi_deg[k],
+        channels.alpha_at(k, run.meta.alpha_deg),
+        channels.cmu_port[k],
+        channels.cmu_stbd[k],
+        channels.cl[k],
+    ]
+}
+
+/// The health fields of a step, in the order of [`HEALTH_COLUMNS`].
+#[must_use]
+pub const fn health_at(output: &Output) -> [u16; 4] {
+    let health = output.health;
+    [health.flags, health.cp_missing, health.cp_rejected, health.cp_isolated]
+}
+
+const fn estimate_columns() -> [&'static str; 10] {
+    let mut columns = Output::ESTIMATE_NAMES;
+    let mut idx = 0;
+    while idx < columns.len() {
+        let name = columns[idx].as_bytes();
+        if name.len() == 2 && name[0] == b'c' && name[1] == b'l' {
+            columns[idx] = "cl_est";
+        }
+        idx += 1;
+    }
+    columns
+}
+
+/// [`RECORDED_COLUMNS`], [`ESTIMATE_COLUMNS`], [`HEALTH_COLUMNS`].
 const fn replay_columns() -> [&'static str; 20] {
     let mut columns = [""; 20];
     let mut idx = 0;
@@ -77,10 +115,8 @@ const fn replay_columns() -> [&'static str; 20] {
         idx += 1;
     }
     let mut estimate = 0;
-    while estimate < Output::ESTIMATE_NAMES.len() {
-        let name = Output::ESTIMATE_NAMES[estimate];
-        columns[idx] =
-            if name.len() == 2 && name.as_bytes()[0] == b'c' && name.as_bytes()[1] == b'l' { "cl_est" } else { name };
+    while estimate < ESTIMATE_COLUMNS.len() {
+        columns[idx] = ESTIMATE_COLUMNS[estimate];
         idx += 1;
         estimate += 1;
     }
@@ -178,28 +214,15 @@ pub fn write_replay_with_faults(
 /// One run's replay as CSV text.
 fn replay_csv(run: &Run, outputs: &[Output]) -> String {
     use std::fmt::Write as _;
-    let channels = &run.channels;
     let mut text = REPLAY_COLUMNS.join(",");
     text.push('\n');
     let number = |value: f64| if value.is_finite() { format!("{value}") } else { String::new() };
     for (k, output) in outputs.iter().enumerate() {
-        let recorded = [
-            channels.t_s[k],
-            channels.phi_deg[k],
-            channels.alpha_at(k, run.meta.alpha_deg),
-            channels.cmu_port[k],
-            channels.cmu_stbd[k],
-            channels.cl[k],
-        ];
-        let estimates = output.estimates();
-        let cells: Vec<String> = recorded
+        let cells: Vec<String> = recorded_at(run, k)
             .into_iter()
             .map(number)
-            .chain(estimates.into_iter().map(|value| number(f64::from(value))))
-            .chain(
-                [output.health.flags, output.health.cp_missing, output.health.cp_rejected, output.health.cp_isolated]
-                    .map(|bits| bits.to_string()),
-            )
+            .chain(output.estimates().into_iter().map(|value| number(f64::from(value))))
+            .chain(health_at(output).map(|bits| bits.to_string()))
             .collect();
         let _ = writeln!(text, "{}", cells.join(","));
     }

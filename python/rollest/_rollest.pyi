@@ -13,7 +13,8 @@ __all__ = [
     "DEFAULT_HOLDOUT_FRACTION",
     "DatasetError",
     "Dataset",
-    "ESTIMATE_NAMES",
+    "ESTIMATE_COLUMNS",
+    "HEALTH_COLUMNS",
     "Estimator",
     "Model",
     "REPLAY_COLUMNS",
@@ -27,7 +28,8 @@ __all__ = [
 ]
 
 REPLAY_COLUMNS: List[str]
-ESTIMATE_NAMES: List[str]
+ESTIMATE_COLUMNS: List[str]
+HEALTH_COLUMNS: List[str]
 DEFAULT_HOLDOUT_FRACTION: float
 
 class RollestError(Exception):

@@ -7,6 +7,7 @@ use std::sync::Arc;
 
 use estimator_core::coeffs::N_TAPS;
 use estimator_core::{CoefficientSet, Input, Output};
+use host_tools::replay::{ESTIMATE_COLUMNS, HEALTH_COLUMNS, health_at};
 use numpy::{PyArray1, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -26,32 +27,16 @@ self_cell::self_cell!(
     }
 );
 
-/// The replay file's names of the estimates (`cl` is `cl_est`, beside the balance's `cl`).
-pub(crate) fn estimate_columns() -> [&'static str; 10] {
-    let mut names = Output::ESTIMATE_NAMES;
-    for name in &mut names {
-        if *name == "cl" {
-            *name = "cl_est";
-        }
-    }
-    names
-}
-
-/// The replay file's names of the health fields.
-pub(crate) const HEALTH_COLUMNS: [&str; 4] = ["health_flags", "cp_missing", "cp_rejected", "cp_isolated"];
-
-/// Every stage's outputs of a run as arrays: the estimates as float32 (the estimator's
-/// precision), the health fields as uint16.
+/// Every stage's outputs of a run as arrays by the replay file's names: the estimates as float32
+/// (the estimator's precision), the health fields as uint16.
 pub(crate) fn outputs_dict<'py>(py: Python<'py>, outputs: &[Output]) -> PyResult<Bound<'py, PyDict>> {
     let columns = PyDict::new(py);
-    for (idx, name) in estimate_columns().iter().enumerate() {
+    for (idx, name) in ESTIMATE_COLUMNS.iter().enumerate() {
         let values: Vec<f32> = outputs.iter().map(|output| output.estimates()[idx]).collect();
         columns.set_item(*name, PyArray1::from_vec(py, values))?;
     }
-    let health: [fn(&Output) -> u16; 4] =
-        [|o| o.health.flags, |o| o.health.cp_missing, |o| o.health.cp_rejected, |o| o.health.cp_isolated];
-    for (name, field) in HEALTH_COLUMNS.iter().zip(health) {
-        let values: Vec<u16> = outputs.iter().map(field).collect();
+    for (idx, name) in HEALTH_COLUMNS.iter().enumerate() {
+        let values: Vec<u16> = outputs.iter().map(|output| health_at(output)[idx]).collect();
         columns.set_item(*name, PyArray1::from_vec(py, values))?;
     }
     Ok(columns)
@@ -126,13 +111,10 @@ impl Estimator {
             output
         });
         let result = PyDict::new(py);
-        for (name, value) in estimate_columns().iter().zip(output.estimates()) {
+        for (name, value) in ESTIMATE_COLUMNS.iter().zip(output.estimates()) {
             result.set_item(*name, value)?;
         }
-        let health = output.health;
-        for (name, value) in
-            HEALTH_COLUMNS.iter().zip([health.flags, health.cp_missing, health.cp_rejected, health.cp_isolated])
-        {
+        for (name, value) in HEALTH_COLUMNS.iter().zip(health_at(&output)) {
             result.set_item(*name, value)?;
         }
         Ok(result)

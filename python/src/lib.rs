@@ -33,7 +33,8 @@ fn _rollest(module: &Bound<'_, PyModule>) -> PyResult<()> {
     module.add_function(wrap_pyfunction!(workflow::evaluate, module)?)?;
     module.add_function(wrap_pyfunction!(workflow::diagnose, module)?)?;
     module.add("REPLAY_COLUMNS", host_tools::replay::REPLAY_COLUMNS.to_vec())?;
-    module.add("ESTIMATE_NAMES", estimator_core::Output::ESTIMATE_NAMES.to_vec())?;
+    module.add("ESTIMATE_COLUMNS", host_tools::replay::ESTIMATE_COLUMNS.to_vec())?;
+    module.add("HEALTH_COLUMNS", host_tools::replay::HEALTH_COLUMNS.to_vec())?;
     module.add("DEFAULT_HOLDOUT_FRACTION", host_tools::fit::split::DEFAULT_HOLDOUT_FRACTION)?;
     Ok(())
 }

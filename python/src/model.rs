@@ -8,6 +8,7 @@ use estimator_core::CoefficientSet;
 use firmware_sim::campaign::mix_seed;
 use firmware_sim::fault::{FaultSpec, apply_to_run};
 use host_tools::model::ModelError;
+use host_tools::replay::{RECORDED_COLUMNS, recorded_at};
 use numpy::PyArray1;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -176,17 +177,9 @@ impl Model {
             .iter()
             .map(|(run, outputs)| {
                 let columns = outputs_dict(py, outputs)?;
-                let channels = &run.channels;
-                let alpha: Vec<f64> = (0..channels.len()).map(|k| channels.alpha_at(k, run.meta.alpha_deg)).collect();
-                for (name, values) in [
-                    ("t_s", &channels.t_s),
-                    ("phi_deg", &channels.phi_deg),
-                    ("alpha_deg", &alpha),
-                    ("cmu_port", &channels.cmu_port),
-                    ("cmu_stbd", &channels.cmu_stbd),
-                    ("cl", &channels.cl),
-                ] {
-                    columns.set_item(name, PyArray1::from_slice(py, values))?;
+                for (idx, name) in RECORDED_COLUMNS.iter().enumerate() {
+                    let values: Vec<f64> = (0..run.channels.len()).map(|k| recorded_at(run, k)[idx]).collect();
+                    columns.set_item(*name, PyArray1::from_vec(py, values))?;
                 }
                 Ok(columns)
             })
