@@ -401,9 +401,9 @@ class Estimator:
         self, columns: Union[Run, Mapping[str, Any], "pandas.DataFrame"], alpha_deg: Optional[float] = None
     ) -> Dict[str, np.ndarray]:
         """Steps over a whole run: a :class:`Run`, a DataFrame or a mapping of arrays with
-        ``phi_deg``, ``cmu_port``, ``cmu_stbd``, ``cp01`` .. ``cp12`` and ``alpha_deg`` (a column,
-        or the ``alpha_deg`` argument), and ``cmu_port_cmd``/``cmu_stbd_cmd`` when recorded
-        (noted after each step, as the replay does).
+        ``phi_deg``, ``cmu_port``, ``cmu_stbd`` and ``cp01`` .. ``cp12``; the angle of attack from
+        an ``alpha_deg`` column, the ``alpha_deg`` argument, or both (the column where finite);
+        ``cmu_port_cmd``/``cmu_stbd_cmd`` when recorded (noted after each step, as the replay).
 
         Returns every stage's estimate (float32) and the health fields (uint16), by the replay
         file's names; the same values, bit for bit, as ``host-tools replay``.
@@ -415,6 +415,8 @@ class Estimator:
             arrays = columns
             if "alpha_deg" in arrays:
                 alpha = _column(arrays, "alpha_deg")
+                if alpha_deg is not None:  # as the replay: the column where finite, else the run's
+                    alpha = np.where(np.isfinite(alpha), alpha, float(alpha_deg))
             elif alpha_deg is not None:
                 alpha = np.full(len(_column(arrays, "phi_deg")), float(alpha_deg))
             else:

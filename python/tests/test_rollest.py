@@ -211,3 +211,12 @@ def test_the_readme_example_runs_as_printed(campaign, tmp_path):
     )
     assert done.returncode == 0, done.stderr
     assert "held-out RMS" in done.stdout and "C_l = " in done.stdout
+
+
+def test_run_takes_a_dataframe(campaign, model):
+    pytest.importorskip("pandas")
+    run = campaign.runs[-1]
+    from_run = rollest.Estimator(model).run(run)
+    from_frame = rollest.Estimator(model).run(run.to_pandas(), alpha_deg=run.alpha_deg)
+    for name, values in from_run.items():
+        np.testing.assert_array_equal(from_frame[name], values, err_msg=name)
