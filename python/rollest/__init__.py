@@ -212,10 +212,11 @@ class Model:
         return self._native.source
 
     @property
-    def folder(self) -> Optional[Path]:
-        """The folder it was read from (None for the built-in tables)."""
-        folder = self._native.folder
-        return None if folder is None else Path(folder)
+    def path(self) -> Optional[Path]:
+        """The model folder (or blob file) it was read from, which ``host-tools --model`` takes;
+        None for the built-in tables."""
+        path = self._native.path
+        return None if path is None else Path(path)
 
     @property
     def dt_s(self) -> float:
@@ -287,7 +288,7 @@ def _model_path(model: Optional[Union[Model, PathLike]]) -> Optional[str]:
     if model is None:
         return None
     if isinstance(model, Model):
-        return None if model.folder is None else os.fspath(model.folder)
+        return None if model.path is None else os.fspath(model.path)
     return os.fspath(model)
 
 

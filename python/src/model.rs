@@ -7,7 +7,7 @@ use std::sync::Arc;
 use estimator_core::CoefficientSet;
 use firmware_sim::campaign::mix_seed;
 use firmware_sim::fault::{FaultSpec, apply_to_run};
-use host_tools::model::ModelError;
+use host_tools::model::{BLOB_FILE, ModelError};
 use host_tools::replay::{RECORDED_COLUMNS, recorded_at};
 use numpy::PyArray1;
 use pyo3::exceptions::PyValueError;
@@ -18,17 +18,15 @@ use crate::dataset::Dataset;
 use crate::error::other_error;
 use crate::estimator::outputs_dict;
 
-/// The blob's file name in a model folder.
-const BLOB_FILE: &str = "model.bin";
-
 /// A model (the Python package's `Model` wraps it).
 #[pyclass(module = "rollest._rollest", frozen)]
 pub struct Model {
     pub(crate) set: Arc<CoefficientSet>,
     /// Where it came from, for reports.
     source: String,
-    /// The folder it was read from (None for the built-in tables).
-    folder: Option<PathBuf>,
+    /// The model folder or blob file it was read from (None for the built-in tables): what
+    /// the command line's `--model` takes.
+    path: Option<PathBuf>,
     /// The folder's files, read when loaded (so that saving does not depend on the folder
     /// staying as it was): name and bytes.
     files: Vec<(String, Vec<u8>)>,
@@ -38,8 +36,6 @@ impl Model {
     /// Reads a model folder (or its model.bin): the set, and every file of the folder.
     pub(crate) fn read(path: &Path) -> Result<Self, ModelError> {
         let (set, source) = host_tools::model::load(Some(path))?;
-        let folder =
-            if path.is_dir() { path.to_path_buf() } else { path.parent().unwrap_or(Path::new(".")).to_path_buf() };
         let io = |path: &Path| {
             let path = path.to_path_buf();
             move |source| ModelError::Io { path, source }
@@ -57,7 +53,7 @@ impl Model {
         } else {
             files.push((BLOB_FILE.to_owned(), std::fs::read(path).map_err(io(path))?));
         }
-        Ok(Self { set: Arc::new(set), source: source.to_string(), folder: Some(folder), files })
+        Ok(Self { set: Arc::new(set), source: source.to_string(), path: Some(path.to_path_buf()), files })
     }
 
     fn file(&self, name: &str) -> Option<String> {
@@ -81,7 +77,7 @@ impl Model {
         Ok(Self {
             set: Arc::new(set),
             source: host_tools::model::ModelSource::BuiltIn.to_string(),
-            folder: None,
+            path: None,
             files: vec![(BLOB_FILE.to_owned(), blob)],
         })
     }
@@ -92,10 +88,10 @@ impl Model {
         self.source.clone()
     }
 
-    /// The folder it was read from (None for the built-in tables).
+    /// The model folder or blob file it was read from (None for the built-in tables).
     #[getter]
-    fn folder(&self) -> Option<PathBuf> {
-        self.folder.clone()
+    fn path(&self) -> Option<PathBuf> {
+        self.path.clone()
     }
 
     /// The fixed step, s.

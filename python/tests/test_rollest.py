@@ -26,7 +26,7 @@ def read_replay(path: Path) -> dict:
 
 
 def test_run_is_bit_identical_to_the_command_line_replay(campaign, model, host_tools, tmp_path):
-    cli(host_tools, "replay", "--data", campaign.path, "--model", model.folder, "--out", tmp_path / "replay")
+    cli(host_tools, "replay", "--data", campaign.path, "--model", model.path, "--out", tmp_path / "replay")
     for run, replayed in zip(campaign.runs, model.replay(campaign)):
         expected = read_replay(tmp_path / "replay" / run.file)
         outputs = rollest.Estimator(model).run(run)
@@ -132,8 +132,12 @@ def test_model_folder_round_trip(model, host_tools, campaign, tmp_path):
     loaded = rollest.Model.load(tmp_path / "saved")
     assert loaded.coefficients == model.coefficients and loaded.blob() == model.blob()
     assert loaded.card is not None and "Model card" in loaded.card
+    (tmp_path / "renamed.bin").write_bytes(model.blob())
+    from_blob = rollest.Model.load(tmp_path / "renamed.bin")
+    assert from_blob.path == tmp_path / "renamed.bin" and from_blob.coefficients == model.coefficients
+    assert from_blob.card is None
     built_in = rollest.Model.built_in()
-    assert built_in.folder is None and built_in.card is None
+    assert built_in.path is None and built_in.card is None
     built_in.save(tmp_path / "built-in")
     assert rollest.Model.load(tmp_path / "built-in").coefficients == built_in.coefficients
 
@@ -193,7 +197,7 @@ def test_run_releases_the_gil(model):
 def test_evaluate_and_diagnose_write_the_command_lines_results(campaign, model, host_tools, tmp_path):
     evaluation = rollest.evaluate(campaign, tmp_path / "evaluation", model)
     assert evaluation.page.exists()
-    cli(host_tools, "evaluate", "--data", campaign.path, "--model", model.folder, "--report", tmp_path / "cli-evaluation")
+    cli(host_tools, "evaluate", "--data", campaign.path, "--model", model.path, "--report", tmp_path / "cli-evaluation")
     expected = json.loads((tmp_path / "cli-evaluation" / "evaluation.json").read_text())
     assert evaluation.results["evaluation"] == expected["evaluation"]
     diagnosis = rollest.diagnose(campaign, tmp_path / "diagnosis", model)
