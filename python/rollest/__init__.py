@@ -82,7 +82,8 @@ class Run:
     ``arrays`` holds ``t_s``, ``phi_deg``, ``cmu_port``, ``cmu_stbd``, ``cp01`` .. ``cp12`` and
     ``cl`` (the roll-moment coefficient, converted from ``mx_nm`` when the file had that), and
     ``alpha_deg``, ``phi_cmd_deg``, ``cmu_port_cmd``, ``cmu_stbd_cmd`` when recorded. A missing
-    sample is NaN.
+    sample is NaN. Columns the format does not define (a rig's ``temperature_c``, say) are
+    ignored, as the format says; ``pandas.read_csv`` reads them.
     """
 
     file: str
