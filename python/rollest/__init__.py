@@ -22,7 +22,7 @@ import os
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
+from typing import TYPE_CHECKING, Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -40,6 +40,7 @@ __all__ = [
     "Estimator",
     "Evaluation",
     "Model",
+    "Progress",
     "REPLAY_COLUMNS",
     "RollestError",
     "Run",
@@ -52,6 +53,11 @@ __all__ = [
 ]
 
 PathLike = Union[str, "os.PathLike[str]"]
+#: A progress callable of the long calls: ``progress(message, done, total)``. At each new stage
+#: ``done`` is 0 and ``total`` the stage's number of steps (None when not counted); each step
+#: done calls it again. It runs on the command's worker threads; an exception it raises is
+#: raised when the call returns.
+Progress = Callable[[str, int, Optional[int]], object]
 
 #: Share of every run, at its end, held out from fitting (the command line's default).
 DEFAULT_HOLDOUT_FRACTION: float = _rollest.DEFAULT_HOLDOUT_FRACTION
@@ -172,15 +178,17 @@ def simulate(
     seed: Optional[int] = None,
     duration_s: Optional[float] = None,
     effects: Sequence[str] = (),
+    progress: Optional[Progress] = None,
 ) -> Dataset:
     """Records a synthetic-tunnel campaign into ``out`` (replaced atomically) and loads it.
 
     ``scenario`` is a scenario TOML file (the paper's campaign when None); ``seed`` and
     ``duration_s`` override it; ``effects`` switch unmodelled effects on, e.g.
-    ``["actuator_delay:delay_s=0.03"]`` (as ``host-tools simulate --effect``).
+    ``["actuator_delay:delay_s=0.03"]`` (as ``host-tools simulate --effect``). ``progress``
+    is told how far it is (:data:`Progress`).
     """
     scenario_path = None if scenario is None else os.fspath(scenario)
-    _rollest.simulate(os.fspath(out), scenario_path, seed, duration_s, list(effects))
+    _rollest.simulate(os.fspath(out), scenario_path, seed, duration_s, list(effects), progress)
     return load_dataset(out)
 
 
@@ -273,16 +281,18 @@ def fit(
     *,
     seed: int = 1,
     holdout_fraction: float = DEFAULT_HOLDOUT_FRACTION,
+    progress: Optional[Progress] = None,
 ) -> Model:
     """Fits every coefficient on the training part of ``data`` (``host-tools fit``).
 
     The model folder goes to ``out`` (replaced atomically), or to a new temporary folder when
-    None (save it with :meth:`Model.save`).
+    None (save it with :meth:`Model.save`). ``progress`` is told how far it is
+    (:data:`Progress`).
     """
     target = tempfile.mkdtemp(prefix="rollest-model-") if out is None else os.fspath(out)
     if out is None:
         os.rmdir(target)  # the fit writes the folder whole, or not at all
-    return Model(_rollest.fit(_data_path(data), target, seed, holdout_fraction))
+    return Model(_rollest.fit(_data_path(data), target, seed, holdout_fraction, progress))
 
 
 def _model_path(model: Optional[Union[Model, PathLike]]) -> Optional[str]:
@@ -311,11 +321,14 @@ def evaluate(
     *,
     seed: int = 1,
     holdout_fraction: float = DEFAULT_HOLDOUT_FRACTION,
+    progress: Optional[Progress] = None,
 ) -> Evaluation:
     """The paper's analysis on the held-out part of ``data`` (``host-tools evaluate``): the
     report folder (HTML, Markdown, SVG figures, ``evaluation.json``) and its results. ``model``
     is the built-in tables when None."""
-    page, warnings = _rollest.evaluate(_data_path(data), os.fspath(report), _model_path(model), seed, holdout_fraction)
+    page, warnings = _rollest.evaluate(
+        _data_path(data), os.fspath(report), _model_path(model), seed, holdout_fraction, progress
+    )
     folder = Path(report)
     results = json.loads((folder / "evaluation.json").read_text())
     return Evaluation(results=results, folder=folder, page=Path(page), warnings=list(warnings))
@@ -342,11 +355,12 @@ def diagnose(
     model: Optional[Union[Model, PathLike]] = None,
     *,
     holdout_fraction: float = DEFAULT_HOLDOUT_FRACTION,
+    progress: Optional[Progress] = None,
 ) -> Diagnosis:
     """The sim-to-real gap of ``real`` against ``model`` (``host-tools diagnose``): where the gap
     lies, which unmodelled effect causes it, how far it shrinks once that effect is added.
     ``model`` None fits nominal models on the data's training part."""
-    page = _rollest.diagnose(_data_path(real), os.fspath(report), _model_path(model), holdout_fraction)
+    page = _rollest.diagnose(_data_path(real), os.fspath(report), _model_path(model), holdout_fraction, progress)
     folder = Path(report)
     results = json.loads((folder / "diagnosis.json").read_text())
     return Diagnosis(results=results, folder=folder, page=Path(page))

@@ -3,7 +3,7 @@
 Use the wrappers of the ``rollest`` package; this module is their engine.
 """
 
-from typing import Dict, List, Optional, Sequence, Tuple
+from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 import numpy.typing as npt
@@ -26,6 +26,8 @@ __all__ = [
     "load_dataset",
     "simulate",
 ]
+
+_Progress = Callable[[str, int, Optional[int]], object]
 
 REPLAY_COLUMNS: List[str]
 ESTIMATE_COLUMNS: List[str]
@@ -107,9 +109,23 @@ def simulate(
     seed: Optional[int] = ...,
     duration_s: Optional[float] = ...,
     effects: Sequence[str] = ...,
+    progress: Optional[_Progress] = ...,
 ) -> int: ...
-def fit(data: str, out: str, seed: int = ..., holdout_fraction: float = ...) -> Model: ...
+def fit(
+    data: str, out: str, seed: int = ..., holdout_fraction: float = ..., progress: Optional[_Progress] = ...
+) -> Model: ...
 def evaluate(
-    data: str, report: str, model: Optional[str] = ..., seed: int = ..., holdout_fraction: float = ...
+    data: str,
+    report: str,
+    model: Optional[str] = ...,
+    seed: int = ...,
+    holdout_fraction: float = ...,
+    progress: Optional[_Progress] = ...,
 ) -> Tuple[str, List[str]]: ...
-def diagnose(real: str, report: str, model: Optional[str] = ..., holdout_fraction: float = ...) -> str: ...
+def diagnose(
+    real: str,
+    report: str,
+    model: Optional[str] = ...,
+    holdout_fraction: float = ...,
+    progress: Optional[_Progress] = ...,
+) -> str: ...

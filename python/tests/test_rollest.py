@@ -224,3 +224,29 @@ def test_run_takes_a_dataframe(campaign, model):
     from_frame = rollest.Estimator(model).run(run.to_pandas(), alpha_deg=run.alpha_deg)
     for name, values in from_run.items():
         np.testing.assert_array_equal(from_frame[name], values, err_msg=name)
+
+
+def test_replay_with_faults_is_the_command_lines(campaign, model, host_tools, tmp_path):
+    faults = ["stuck:cp07@5s", "drop:phi=0.2"]
+    flags = [arg for spec in faults for arg in ("--fault", spec)]
+    cli(host_tools, "replay", "--data", campaign.path, "--model", model.path, "--out", tmp_path / "r", *flags, "--fault-seed", 3)
+    for run, replayed in zip(campaign.runs, model.replay(campaign, faults=faults, fault_seed=3)):
+        expected = read_replay(tmp_path / "r" / run.file)
+        for name in rollest.REPLAY_COLUMNS:
+            np.testing.assert_array_equal(replayed[name].astype(np.float64), expected[name], err_msg=f"{run.file}: {name}")
+        assert np.any(replayed["health_flags"] != 0), "the faults show in the health flags"
+    with pytest.raises(ValueError, match="fault"):
+        model.replay(campaign, faults=["melted:cp01"])
+
+
+def test_long_calls_report_progress_and_raise_what_the_callable_raised(tmp_path):
+    events = []
+    rollest.simulate(tmp_path / "a", seed=2, duration_s=2.0, progress=lambda *event: events.append(event))
+    assert ("simulating runs", 0, 9) in events and ("simulating runs", 9, 9) in events
+    assert sorted(done for message, done, _ in events if message == "simulating runs") == list(range(10))
+
+    def refuse(message: str, done: int, total: object) -> None:
+        raise RuntimeError(f"stop at {message}")
+
+    with pytest.raises(RuntimeError, match="stop at"):
+        rollest.simulate(tmp_path / "b", seed=2, duration_s=2.0, progress=refuse)
