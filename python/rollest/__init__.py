@@ -274,6 +274,10 @@ class Model:
     def __repr__(self) -> str:
         return f"Model({self.source!r})"
 
+    def _repr_markdown_(self) -> str:
+        """A notebook shows the model card."""
+        return self.card or f"Model from {self.source} (no model card)"
+
 
 def fit(
     data: Union[Dataset, PathLike],

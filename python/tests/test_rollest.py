@@ -132,6 +132,7 @@ def test_model_folder_round_trip(model, host_tools, campaign, tmp_path):
     loaded = rollest.Model.load(tmp_path / "saved")
     assert loaded.coefficients == model.coefficients and loaded.blob() == model.blob()
     assert loaded.card is not None and "Model card" in loaded.card
+    assert loaded._repr_markdown_() == loaded.card
     (tmp_path / "renamed.bin").write_bytes(model.blob())
     from_blob = rollest.Model.load(tmp_path / "renamed.bin")
     assert from_blob.path == tmp_path / "renamed.bin" and from_blob.coefficients == model.coefficients
