@@ -71,6 +71,10 @@ python() {
 foreign() {
     cargo build --release -p host-tools
     tools/foreign-tunnel/check.sh "${CARGO_TARGET_DIR:-target}/foreign-tunnel"
+    # The Python package on a recording the other program wrote (the `python` job installed it).
+    ROLLEST_FOREIGN_DATA="${CARGO_TARGET_DIR:-target}/foreign-tunnel/bias_drift" \
+        ROLLEST_HOST_TOOLS="${CARGO_TARGET_DIR:-target}/release/host-tools" \
+        "$VENV/bin/pytest" -q python/tests -k another_program
     tools/foreign-tunnel/campaign_check.sh "${CARGO_TARGET_DIR:-target}/foreign-campaign"
 }
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -251,3 +252,16 @@ def test_long_calls_report_progress_and_raise_what_the_callable_raised(tmp_path)
 
     with pytest.raises(RuntimeError, match="stop at"):
         rollest.simulate(tmp_path / "b", seed=2, duration_s=2.0, progress=refuse)
+
+
+@pytest.mark.skipif(not os.environ.get("ROLLEST_FOREIGN_DATA"), reason="./ci.sh foreign sets ROLLEST_FOREIGN_DATA")
+def test_a_dataset_written_by_another_program_replays_as_the_command_line(host_tools, tmp_path):
+    """The second tunnel's files (tools/foreign-tunnel: `mx_nm` instead of `cl`, shuffled and
+    extra columns), read and stepped here and by the command line."""
+    data = rollest.load_dataset(os.environ["ROLLEST_FOREIGN_DATA"])
+    model = rollest.Model.built_in()
+    cli(host_tools, "replay", "--data", data.path, "--out", tmp_path / "replay")
+    for run in data.runs:
+        expected = read_replay(tmp_path / "replay" / run.file)
+        for name, values in rollest.Estimator(model).run(run).items():
+            np.testing.assert_array_equal(values.astype(np.float64), expected[name], err_msg=f"{run.file}: {name}")
