@@ -15,6 +15,10 @@ use pyo3::types::PyDict;
 
 use crate::model::Model;
 
+/// Steps of `run` between two checks for a pending signal (Ctrl-C): about 15 ms of stepping, so
+/// an interrupt is prompt and the checks (each takes the GIL) cost nothing measurable.
+const SIGNAL_CHECK_STEPS: usize = 1 << 16;
+
 /// The estimator over a borrowed set, as the self-referential pair needs it named.
 type Borrowing<'a> = estimator_core::Estimator<'a>;
 
@@ -121,8 +125,9 @@ impl Estimator {
     }
 
     /// Steps over whole arrays (`cp` of shape `(n, 12)`), continuing from the present state,
-    /// without the GIL. A recorded demand (either command array) is noted after each step, the
-    /// other jet's command 0 when only one is given.
+    /// without the GIL; a signal (Ctrl-C) stops it between chunks of steps and is raised. A
+    /// recorded demand (either command array) is noted after each step, the other jet's command
+    /// 0 when only one is given.
     #[pyo3(signature = (phi_deg, alpha_deg, cmu_port, cmu_stbd, cp, cmu_port_cmd = None, cmu_stbd_cmd = None))]
     #[allow(clippy::too_many_arguments)] // The run's channels, by name, as the Python call reads.
     fn run<'py>(
@@ -161,11 +166,13 @@ impl Estimator {
                 same(array, name)?;
             }
         }
-        let owned = &mut self.owned;
-        let outputs = py.detach(move || {
-            owned.with_dependent_mut(|_, estimator| {
-                (0..n)
-                    .map(|k| {
+        let mut outputs = Vec::with_capacity(n);
+        for start in (0..n).step_by(SIGNAL_CHECK_STEPS) {
+            let end = n.min(start + SIGNAL_CHECK_STEPS);
+            let (owned, outputs) = (&mut self.owned, &mut outputs);
+            py.detach(move || {
+                owned.with_dependent_mut(|_, estimator| {
+                    outputs.extend((start..end).map(|k| {
                         let input = Input {
                             phi_deg: phi[k] as f32,
                             alpha_deg: alpha[k] as f32,
@@ -179,10 +186,12 @@ impl Estimator {
                             estimator.note_demand([command(port_cmd), command(stbd_cmd)]);
                         }
                         output
-                    })
-                    .collect::<Vec<Output>>()
-            })
-        });
+                    }));
+                });
+            });
+            // Ctrl-C in a notebook stops a long run here (the estimator has stepped to `end`).
+            py.check_signals()?;
+        }
         outputs_dict(py, &outputs)
     }
 }

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import _thread
 import json
 import os
 import shutil
@@ -265,3 +266,15 @@ def test_a_dataset_written_by_another_program_replays_as_the_command_line(host_t
         expected = read_replay(tmp_path / "replay" / run.file)
         for name, values in rollest.Estimator(model).run(run).items():
             np.testing.assert_array_equal(values.astype(np.float64), expected[name], err_msg=f"{run.file}: {name}")
+
+
+def test_ctrl_c_stops_a_long_run(model):
+    n = 4_000_000
+    zeros, alpha, cp = np.zeros(n), np.full(n, 20.0), np.full((n, 12), -0.3)
+    estimator = rollest.Estimator(model)
+    started = time.perf_counter()
+    with pytest.raises(KeyboardInterrupt):
+        threading.Timer(0.05, _thread.interrupt_main).start()
+        estimator._native.run(zeros, alpha, zeros, zeros, cp)
+    # The whole run takes over a second; the interrupt lands within one chunk of steps.
+    assert time.perf_counter() - started < 0.6
