@@ -78,6 +78,11 @@ impl Profiled {
     }
 }
 
+/// How many of a family's leading coarse forms are refined ([`candidates::BalanceCandidate::refine`]):
+/// more than one, because neighbouring optima of a coarse grid (two modes, a delay and its
+/// alias) can swap order on the fine one.
+const REFINED_LEADERS: usize = 3;
+
 /// Standard errors above zero the selection part's calibration slope must stand for the fitted
 /// effect to count as confirmed there (one-sided, about 2 % by chance).
 pub const CONFIRM_Z: f64 = 2.0;
@@ -141,17 +146,31 @@ pub fn profile(
     let forms = candidates::forms(candidate, sample_hz, context);
     // Each form of the family with its evidence: the best form is the one with the most evidence
     // (its columns and profiled parameters penalised), so a richer form wins only by its fit.
-    let fits: Vec<(Form, Fit, f64)> = forms
-        .par_iter()
-        .filter_map(|form| {
-            let columns = all_columns(candidate, form, runs, context);
-            regression::fit_through_origin(&segments, &columns).map(|fit| {
-                let k = fit.beta.len() + form.n_profiled();
-                let evidence = delta_bic(&fit, autocorrelation_time, k);
-                (*form, fit, evidence)
-            })
+    let evaluate = |form: &Form| {
+        let columns = all_columns(candidate, form, runs, context);
+        regression::fit_through_origin(&segments, &columns).map(|fit| {
+            let k = fit.beta.len() + form.n_profiled();
+            let evidence = delta_bic(&fit, autocorrelation_time, k);
+            (*form, fit, evidence)
+        })
+    };
+    let mut fits: Vec<(Form, Fit, f64)> = forms.par_iter().filter_map(evaluate).collect();
+    // The family's own refinement around its leading coarse forms: a fine grid only where the
+    // coarse one points, so that a narrow optimum (a lightly damped mode, a delay) is found
+    // without profiling the fine grid everywhere.
+    let mut leaders: Vec<&(Form, Fit, f64)> = fits.iter().collect();
+    leaders.sort_by(|a, b| b.2.total_cmp(&a.2));
+    let finer: Vec<Form> = leaders
+        .iter()
+        .take(REFINED_LEADERS)
+        .flat_map(|(form, _, _)| {
+            candidate
+                .refine(&form.shape, sample_hz, context)
+                .into_iter()
+                .map(|shape| Form { shape, per_alpha: form.per_alpha })
         })
         .collect();
+    fits.extend(finer.par_iter().filter_map(evaluate).collect::<Vec<_>>());
     let profile = fits.iter().map(|(form, fit, _)| (form.coordinate().map_or(0.0, |(_, v)| v), fit.ssr)).collect();
     let (form, fit, delta_bic) = fits.into_iter().max_by(|a, b| a.2.total_cmp(&b.2))?;
     let columns = all_columns(candidate, &form, runs, context);

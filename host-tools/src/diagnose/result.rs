@@ -518,7 +518,10 @@ mod tests {
     fn a_balance_candidate_is_summarised_in_noise_variances() {
         let profiled = Profiled {
             candidate: &candidates::ActuatorDelay,
-            form: Form { shape: Shape::Delay { delay_s: 0.02 }, per_alpha: false },
+            form: Form {
+                shape: Shape::Delay { delay_s: 0.02, jets: candidates::Jets::Both, smoothing_s: 0.0 },
+                per_alpha: false,
+            },
             fit: Fit {
                 beta: vec![0.5],
                 ssr_base: 10.0,
@@ -539,14 +542,24 @@ mod tests {
         let summary = CandidateSummary::from_profiled(0.01)(&profiled);
         assert_eq!(summary.name, "actuator_delay");
         assert_eq!(summary.block, "plant");
-        assert_eq!(summary.hyper, BTreeMap::from([("delay_s".to_owned(), serde_json::json!(0.02))]));
+        assert_eq!(
+            summary.hyper,
+            BTreeMap::from([
+                ("delay_s".to_owned(), serde_json::json!(0.02)),
+                ("jets".to_owned(), serde_json::json!("both")),
+                ("smoothing_s".to_owned(), serde_json::json!(0.0)),
+            ])
+        );
         assert!((summary.explained_to_noise.unwrap() - 4.0).abs() < 1e-9);
         assert!((summary.selected_to_noise.unwrap() - 2.0).abs() < 1e-9);
         assert_close(summary.delta_bic, 42.0);
         assert!((summary.heldout_shrink.unwrap() - 0.5).abs() < 1e-9);
         let degenerate = Profiled {
             delta_bic: f64::NAN,
-            form: Form { shape: Shape::Delay { delay_s: f64::NAN }, per_alpha: false },
+            form: Form {
+                shape: Shape::Delay { delay_s: f64::NAN, jets: candidates::Jets::Both, smoothing_s: 0.0 },
+                per_alpha: false,
+            },
             ..profiled
         };
         let summary = CandidateSummary::from_profiled(0.01)(&degenerate);

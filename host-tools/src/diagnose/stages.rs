@@ -80,6 +80,7 @@ impl Streams {
                 alphas
             },
             longest_run_s: self.runs.iter().map(|run| run.t_s.last().copied().unwrap_or(0.0)).fold(0.0, f64::max),
+            two_jets: [0, 1].iter().all(|&side| self.runs.iter().any(|run| run.cmu[side].iter().any(|c| *c > 0.0))),
         }
     }
 
@@ -110,8 +111,10 @@ impl BalanceAttribution {
         let mut round = first_round.clone();
         let this = Self { first_round: Vec::new(), named: Vec::new(), remainder: Vec::new() };
         while named.len() < 3 {
-            let Some(best) =
-                round.iter().find(|p| !named.iter().any(|n| n.candidate.name() == p.candidate.name())).cloned()
+            let Some(best) = round
+                .iter()
+                .find(|p| p.candidate.repeatable() || !named.iter().any(|n| n.candidate.name() == p.candidate.name()))
+                .cloned()
             else {
                 break;
             };

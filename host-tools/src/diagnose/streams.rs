@@ -191,17 +191,18 @@ impl RunStreams {
     /// Re-runs the sim's plants on other Cmu sequences (one per jet), as the core steps them.
     #[must_use]
     pub fn plant_response(&self, set: &CoefficientSet, cmu: &[Vec<f64>; 2]) -> Vec<f64> {
+        let [port, stbd] = self.plant_sides(set, cmu);
+        port.iter().zip(&stbd).map(|(a, b)| a + b).collect()
+    }
+
+    /// Re-runs the sim's plants on other Cmu sequences (one per jet): each jet's moment.
+    #[must_use]
+    pub fn plant_sides(&self, set: &CoefficientSet, cmu: &[Vec<f64>; 2]) -> [Vec<f64>; 2] {
         let alpha_rad = self.alpha_deg.to_radians() as f32;
-        let mut plants = [Plant::new(); 2];
-        (0..self.len())
-            .map(|idx| {
-                let mut total = 0.0;
-                for (side, plant) in plants.iter_mut().enumerate() {
-                    total += f64::from(plant.step(&set.plant[side], cmu[side][idx] as f32, alpha_rad).0);
-                }
-                total
-            })
-            .collect()
+        [0, 1].map(|side| {
+            let mut plant = Plant::new();
+            cmu[side].iter().map(|&c| f64::from(plant.step(&set.plant[side], c as f32, alpha_rad).0)).collect()
+        })
     }
 }
 

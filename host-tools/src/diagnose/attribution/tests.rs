@@ -234,6 +234,7 @@ fn subtract_removes_the_fitted_effect_over_whole_runs() {
     let context = test_context();
     let run = rolling(2, 1.0, |_, _, n| n);
     let mut effect = profiled(&InertialTare, 0.0, 0.0);
+    effect.form.shape = candidates::Shape::Tare { per_run: false, corner_hz: None };
     effect.fit.beta = vec![2.0];
     let residuals = vec![run.residual.clone()];
     let after = subtract(&effect, std::slice::from_ref(&run), &residuals, &context);

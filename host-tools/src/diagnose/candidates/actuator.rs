@@ -1,26 +1,66 @@
 //! The plant's input path (G5): the recorded Cmu reaches the jets late (a pure delay of the
-//! pneumatic line) or smoothed (a first-order lag of valve and plenum). Both re-run the sim's own
-//! plant (estimator-core) on the modified Cmu; the column is the change of its moment.
+//! pneumatic line, alone or followed by a short smoothing) or smoothed (a low-pass of valve and
+//! plenum of first or second order, or a valve whose stroke is rate limited), on one jet or both
+//! (docs/diagnosis.md, Actuator delay and lag). Every form re-runs the sim's own plant
+//! (estimator-core) on the modified Cmu; the column is the change of its moment, one gain.
 
 use firmware_sim::effect::Effect;
 
-use super::{BalanceCandidate, Context, Params, Shape, difference, first_order_lag, gains, log_grid};
+use super::{BalanceCandidate, Context, Jets, Params, Shape, difference, first_order_lag, gains, log_grid, resonator};
 use crate::diagnose::streams::RunStreams;
 
-/// `actuator_delay`: the plant driven by `Cmu(t - d)`, d from half a sample to 250 ms (a long
-/// pneumatic line at the speed of sound, docs/equations.md, Actuator and plant magnitudes).
+/// `actuator_delay`: the plant driven by `Cmu(t - d)` of one jet or both, d from half a sample to
+/// 0.5 s (the contract's range: a long pneumatic line at the speed of sound, docs/equations.md,
+/// Actuator and plant magnitudes), alone or followed by a smoothing of at most a quarter of the
+/// delay.
 #[derive(Debug, Clone, Copy)]
 pub struct ActuatorDelay;
 
-/// `actuator_lag`: the plant driven by a first-order lag of Cmu, tau from one sample to 0.5 s.
+/// `actuator_lag`: the plant driven by a unit-gain low-pass of Cmu (first order, tau 5 ms to
+/// 0.5 s, one jet or both; second order with real or lightly damped poles), or by a rate-limited
+/// valve.
 #[derive(Debug, Clone, Copy)]
 pub struct ActuatorLag;
 
 const SEPARATOR: &str = "a bench step test of the valve and runs at a second free-stream speed (the pneumatic part is fixed in seconds, the aerodynamic part scales with c/U)";
 
+/// Longest delay, s (the contract's range).
+const DELAY_MAX_S: f64 = 0.5;
+
+/// Shortest and longest time constant of the lag family, s (the contract's range).
+const LAG_RANGE_S: (f64, f64) = (0.005, 0.5);
+
+/// Damping ratios of the second-order valve on the coarse grid, and on the refined one: from a
+/// lightly damped pair to two real poles (`zeta >= 1`; a real-pole pair far apart is a first-order
+/// lag and its delay, which the first-order form and the delay family hold).
+const VALVE_ZETA_COARSE: [f64; 2] = [0.4, 1.0];
+const VALVE_ZETA_FINE: [f64; 5] = [0.2, 0.3, 0.45, 0.7, 1.0];
+
+/// Shares of the delay a smoothing after it may take ("well under the delay").
+const SMOOTHING_SHARES: [f64; 2] = [0.1, 0.25];
+
+/// `n` points spaced logarithmically between the neighbours of `value` on a logarithmic grid
+/// whose ratio between points is `step_ratio` (a refinement of one coarse cell either side).
+fn around(value: f64, step_ratio: f64, n: usize, low: f64, high: f64) -> Vec<f64> {
+    log_grid((value / step_ratio).max(low), (value * step_ratio).min(high), n)
+}
+
+/// The ratio between neighbours of `log_grid(low, high, n)`.
+fn grid_ratio(low: f64, high: f64, n: usize) -> f64 {
+    (high / low).powf(1.0 / (n.max(2) - 1) as f64)
+}
+
+impl ActuatorDelay {
+    const COARSE: usize = 24;
+
+    fn delay_low_s(sample_hz: f64) -> f64 {
+        0.5 / sample_hz
+    }
+}
+
 impl BalanceCandidate for ActuatorDelay {
     fn regressors(&self) -> &'static str {
-        "the sim's plant re-run on the recorded Cmu delayed by d, less its moment"
+        "the sim's plant re-run on the recorded Cmu of one jet or both delayed by d (and smoothed), less its moment"
     }
 
     fn effect(&self) -> Option<Effect> {
@@ -31,18 +71,57 @@ impl BalanceCandidate for ActuatorDelay {
         SEPARATOR
     }
 
-    fn shapes(&self, sample_hz: f64, _context: &Context<'_>) -> Vec<Shape> {
-        log_grid(0.5 / sample_hz, 0.25, 40).into_iter().map(|delay_s| Shape::Delay { delay_s }).collect()
+    /// A delay per jet is named as one jet's, then the other's on the remainder.
+    fn repeatable(&self) -> bool {
+        true
     }
 
+    fn shapes(&self, sample_hz: f64, context: &Context<'_>) -> Vec<Shape> {
+        let grid = log_grid(Self::delay_low_s(sample_hz), DELAY_MAX_S, Self::COARSE);
+        Jets::choices(context)
+            .iter()
+            .flat_map(|&jets| grid.iter().map(move |&delay_s| Shape::Delay { delay_s, jets, smoothing_s: 0.0 }))
+            .collect()
+    }
+
+    fn refine(&self, best: &Shape, sample_hz: f64, _context: &Context<'_>) -> Vec<Shape> {
+        let Shape::Delay { delay_s, jets, .. } = *best else { return Vec::new() };
+        let low = Self::delay_low_s(sample_hz);
+        let ratio = grid_ratio(low, DELAY_MAX_S, Self::COARSE);
+        let mut shapes = Vec::new();
+        for delay_s in around(delay_s, ratio, 9, low, DELAY_MAX_S) {
+            shapes.push(Shape::Delay { delay_s, jets, smoothing_s: 0.0 });
+            for share in SMOOTHING_SHARES {
+                // The smoothing adds about its own time constant to the delay: keep the sum.
+                let smoothing_s = share * delay_s;
+                shapes.push(Shape::Delay { delay_s: delay_s - smoothing_s, jets, smoothing_s });
+            }
+        }
+        shapes
+    }
+
+    /// The plant is time invariant at a run's angle of attack and starts at rest, so its
+    /// response to `Cmu(t - d)` is its response to `Cmu` delayed by `d`: the delay shifts the
+    /// sim's own moment of the chosen jets, and only a smoothing re-runs the plant.
     fn columns(&self, shape: &Shape, run: &RunStreams, _run_idx: usize, context: &Context<'_>) -> Vec<Vec<f64>> {
-        let Shape::Delay { delay_s } = *shape else { return Vec::new() };
+        let Shape::Delay { delay_s, jets, smoothing_s } = *shape else { return Vec::new() };
         if !run.blows() {
             return vec![vec![0.0; run.len()]];
         }
-        let delay_samples = delay_s / (1.0 / run.sample_hz);
-        let delayed = run.cmu.clone().map(|cmu| fractional_delay(&cmu, delay_samples));
-        vec![difference(&run.plant_response(context.set, &delayed), &run.cl_afc())]
+        let delay_samples = delay_s * run.sample_hz;
+        let dt_s = 1.0 / run.sample_hz;
+        let moments: [Vec<f64>; 2] = if smoothing_s > 0.0 {
+            let smoothed = jets.apply(&run.cmu, |cmu| first_order_lag(cmu, smoothing_s, dt_s));
+            run.plant_sides(context.set, &smoothed)
+        } else {
+            run.cl_afc_side.clone()
+        };
+        let shifted = jets.apply(&moments, |moment| fractional_delay(moment, delay_samples));
+        vec![
+            (0..run.len())
+                .map(|i| shifted[0][i] + shifted[1][i] - run.cl_afc_side[0][i] - run.cl_afc_side[1][i])
+                .collect(),
+        ]
     }
 
     fn params(&self, _shape: &Shape, beta: &[f64], _context: &Context<'_>, _columns: &[Vec<Vec<f64>>]) -> Params {
@@ -50,9 +129,14 @@ impl BalanceCandidate for ActuatorDelay {
     }
 }
 
+impl ActuatorLag {
+    const COARSE: usize = 14;
+    const VALVE_COARSE: usize = 8;
+}
+
 impl BalanceCandidate for ActuatorLag {
     fn regressors(&self) -> &'static str {
-        "the sim's plant re-run on the recorded Cmu through a first-order lag, less its moment"
+        "the sim's plant re-run on the recorded Cmu through a unit-gain low-pass (first order per jet, second order) or a rate limit, less its moment"
     }
 
     fn effect(&self) -> Option<Effect> {
@@ -63,22 +147,86 @@ impl BalanceCandidate for ActuatorLag {
         SEPARATOR
     }
 
-    fn shapes(&self, sample_hz: f64, _context: &Context<'_>) -> Vec<Shape> {
-        log_grid(1.0 / sample_hz, 0.5, 36).into_iter().map(|tau_s| Shape::Lag { tau_s }).collect()
+    /// A lag per jet is named as one jet's, then the other's on the remainder.
+    fn repeatable(&self) -> bool {
+        true
+    }
+
+    fn shapes(&self, sample_hz: f64, context: &Context<'_>) -> Vec<Shape> {
+        let low = LAG_RANGE_S.0.max(1.0 / sample_hz);
+        let first = log_grid(low, LAG_RANGE_S.1, Self::COARSE);
+        let mut shapes: Vec<Shape> = Jets::choices(context)
+            .iter()
+            .flat_map(|&jets| first.iter().map(move |&tau_s| Shape::Lag { tau_s, jets }))
+            .collect();
+        for tau_s in log_grid(low, LAG_RANGE_S.1, Self::VALVE_COARSE) {
+            shapes.extend(VALVE_ZETA_COARSE.map(|zeta| Shape::SecondOrderLag { tau_s, zeta }));
+            // A full stroke as fast as the time constants span.
+            shapes.push(Shape::RateLimit { full_stroke_s: tau_s });
+        }
+        shapes
+    }
+
+    fn refine(&self, best: &Shape, sample_hz: f64, _context: &Context<'_>) -> Vec<Shape> {
+        let low = LAG_RANGE_S.0.max(1.0 / sample_hz);
+        let high = LAG_RANGE_S.1;
+        match *best {
+            Shape::Lag { tau_s, jets } => around(tau_s, grid_ratio(low, high, Self::COARSE), 9, low, high)
+                .into_iter()
+                .map(|tau_s| Shape::Lag { tau_s, jets })
+                .collect(),
+            Shape::SecondOrderLag { tau_s, .. } => {
+                around(tau_s, grid_ratio(low, high, Self::VALVE_COARSE), 7, low, high)
+                    .into_iter()
+                    .flat_map(|tau_s| VALVE_ZETA_FINE.map(|zeta| Shape::SecondOrderLag { tau_s, zeta }))
+                    .collect()
+            }
+            Shape::RateLimit { full_stroke_s } => {
+                around(full_stroke_s, grid_ratio(low, high, Self::VALVE_COARSE), 7, low, high)
+                    .into_iter()
+                    .map(|full_stroke_s| Shape::RateLimit { full_stroke_s })
+                    .collect()
+            }
+            _ => Vec::new(),
+        }
     }
 
     fn columns(&self, shape: &Shape, run: &RunStreams, _run_idx: usize, context: &Context<'_>) -> Vec<Vec<f64>> {
-        let Shape::Lag { tau_s } = *shape else { return Vec::new() };
         if !run.blows() {
             return vec![vec![0.0; run.len()]];
         }
-        let lagged = run.cmu.clone().map(|cmu| first_order_lag(&cmu, tau_s, 1.0 / run.sample_hz));
-        vec![difference(&run.plant_response(context.set, &lagged), &run.cl_afc())]
+        let dt_s = 1.0 / run.sample_hz;
+        let effective = match *shape {
+            Shape::Lag { tau_s, jets } => jets.apply(&run.cmu, |cmu| first_order_lag(cmu, tau_s, dt_s)),
+            Shape::SecondOrderLag { tau_s, zeta } => {
+                Jets::Both.apply(&run.cmu, |cmu| resonator(cmu, 1.0 / (std::f64::consts::TAU * tau_s), zeta, dt_s))
+            }
+            Shape::RateLimit { full_stroke_s } => {
+                let step = context.cmu_ref * dt_s / full_stroke_s;
+                Jets::Both.apply(&run.cmu, |cmu| rate_limited(cmu, step))
+            }
+            _ => return Vec::new(),
+        };
+        vec![difference(&run.plant_response(context.set, &effective), &run.cl_afc())]
     }
 
     fn params(&self, _shape: &Shape, beta: &[f64], _context: &Context<'_>, _columns: &[Vec<Vec<f64>>]) -> Params {
         gains(&["gain"], beta)
     }
+}
+
+/// `values` followed by a valve that moves at most `step` per sample (a slew-rate limit), from
+/// the first value.
+#[must_use]
+pub fn rate_limited(values: &[f64], step: f64) -> Vec<f64> {
+    let mut state = values.first().copied().unwrap_or(0.0);
+    values
+        .iter()
+        .map(|&target| {
+            state += (target - state).clamp(-step, step);
+            state
+        })
+        .collect()
 }
 
 /// `x(t - d)` for a delay of `d` samples (fractional: linear interpolation between samples;
@@ -108,5 +256,35 @@ mod tests {
         let delayed = fractional_delay(&ramp, 2.5);
         assert!((delayed[6] - 3.5).abs() < 1e-12);
         assert_eq!(delayed[0], 0.0);
+    }
+
+    /// A rate limit follows a step at its slope, then holds the target.
+    #[test]
+    fn rate_limit_ramps_to_a_step() {
+        let step: Vec<f64> = [vec![0.0; 3], vec![1.0; 10]].concat();
+        let limited = rate_limited(&step, 0.25);
+        assert_eq!(&limited[2..8], &[0.0, 0.25, 0.5, 0.75, 1.0, 1.0]);
+    }
+
+    /// The delay's column shifts the sim's own plant moment of the chosen jet: the plant is time
+    /// invariant, so delaying its input delays its output. A port-only delay leaves the
+    /// starboard jet's moment as it was.
+    #[test]
+    fn a_delay_of_one_jet_shifts_that_jets_moment() {
+        let context = crate::diagnose::candidates::test_context();
+        let n = 600;
+        let mut run = crate::diagnose::streams::synthetic_run(1000.0, vec![vec![0.0; n]], vec![vec![0.0; n]]);
+        run.kind = firmware_sim::dataset::RunKind::Actuation;
+        let pulse: Vec<f64> = (0..n).map(|i| if (100..300).contains(&i) { 0.01 } else { 0.0 }).collect();
+        run.cmu = [pulse.clone(), pulse];
+        run.cl_afc_side = run.plant_sides(context.set, &run.cmu);
+        let shape = Shape::Delay { delay_s: 0.02, jets: Jets::Port, smoothing_s: 0.0 };
+        let column = &ActuatorDelay.columns(&shape, &run, 0, &context)[0];
+        let rerun = run.plant_sides(context.set, &Jets::Port.apply(&run.cmu, |c| fractional_delay(c, 20.0)));
+        let want: Vec<f64> = (0..n).map(|i| rerun[0][i] - run.cl_afc_side[0][i]).collect();
+        let peak = want.iter().fold(0.0, |acc: f64, v| acc.max(v.abs()));
+        // Equal but for the plant's own start from rest, which the shift moves too.
+        let worst = column.iter().zip(&want).map(|(c, w)| (c - w).abs()).fold(0.0, f64::max);
+        assert!(peak > 0.0 && worst <= 0.01 * peak, "worst {worst} of {peak}");
     }
 }

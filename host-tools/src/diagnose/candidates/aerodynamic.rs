@@ -6,24 +6,31 @@
 use firmware_sim::effect::Effect;
 
 use super::{
-    BalanceCandidate, Context, DampingLaw, Drive, Params, Shape, SlowLaw, difference, first_order_lag, gains, log_grid,
+    BalanceCandidate, CmuLaw, Context, DampingLaw, Drive, Params, Shape, SlowLaw, difference, first_order_lag, gains,
+    log_grid,
 };
 use crate::diagnose::streams::RunStreams;
 
-/// `roll_damping`: a moment that grows with the roll rate, linear `C_l,p p_hat` or quadratic
-/// `C_l,p|p| p_hat |p_hat|`, one gain or one per angle of attack.
+/// `roll_damping`: a moment that grows with the roll rate, linear `C_l,p p_hat`, quadratic
+/// `C_l,p|p| p_hat |p_hat|` or cubic `C_l,p3 p_hat^3`, one gain or one per angle of attack.
 #[derive(Debug, Clone, Copy)]
 pub struct RollDamping;
 
-/// `vortex_lag`: a second, slower flow state, tau from 30 ms to 5 s (no shorter than
-/// [`Context::slow_tau_min_s`]).
+/// `vortex_lag`: a second, slower flow state, tau from 30 ms (no shorter than
+/// [`Context::slow_tau_min_s`], twice the eGK's lag) to 50 times the eGK's lag (at least 5 s), at
+/// every angle of attack or from one angle upward (a breakdown that sets in above an angle).
 #[derive(Debug, Clone, Copy)]
 pub struct VortexLag;
 
-/// `coupling`: bilinear disturbance-actuation interaction terms, one set or one per angle of
-/// attack.
+/// `coupling`: disturbance-actuation interaction terms, linear in Cmu or in its square root,
+/// instantaneous or through a first-order lag, one set or one per angle of attack.
 #[derive(Debug, Clone, Copy)]
 pub struct Coupling;
+
+/// Lags of the coupling's coarse grid, s: instantaneous, then 0.1 and 0.4 s (refined to a
+/// factor of two either side; 0.02 to 0.8 s spans a jet's effect building up over a few to
+/// some hundred convective times at tunnel speeds).
+const COUPLING_LAGS_COARSE_S: [f64; 3] = [0.0, 0.1, 0.4];
 
 /// Recalibration of the existing blocks' gains (group G0): names no new effect.
 #[derive(Debug, Clone, Copy)]
@@ -33,7 +40,7 @@ const AERODYNAMIC_SEPARATOR: &str = "forced roll at several reduced frequencies 
 
 impl BalanceCandidate for RollDamping {
     fn regressors(&self) -> &'static str {
-        "the reduced roll rate, linear or times its size"
+        "the reduced roll rate, linear, times its size, or cubed"
     }
 
     fn effect(&self) -> Option<Effect> {
@@ -45,7 +52,7 @@ impl BalanceCandidate for RollDamping {
     }
 
     fn shapes(&self, _sample_hz: f64, _context: &Context<'_>) -> Vec<Shape> {
-        [DampingLaw::Linear, DampingLaw::Quadratic].map(|law| Shape::Damping { law }).to_vec()
+        [DampingLaw::Linear, DampingLaw::Quadratic, DampingLaw::Cubic].map(|law| Shape::Damping { law }).to_vec()
     }
 
     fn schedulable(&self) -> bool {
@@ -56,6 +63,7 @@ impl BalanceCandidate for RollDamping {
         let p_hat = context.p_hat(run);
         match shape {
             Shape::Damping { law: DampingLaw::Quadratic } => vec![p_hat.iter().map(|p| p * p.abs()).collect()],
+            Shape::Damping { law: DampingLaw::Cubic } => vec![p_hat.iter().map(|p| p * p * p).collect()],
             _ => vec![p_hat],
         }
     }
@@ -63,8 +71,26 @@ impl BalanceCandidate for RollDamping {
     fn params(&self, shape: &Shape, beta: &[f64], _context: &Context<'_>, _columns: &[Vec<Vec<f64>>]) -> Params {
         match shape {
             Shape::Damping { law: DampingLaw::Quadratic } => gains(&["clpp"], beta),
+            Shape::Damping { law: DampingLaw::Cubic } => gains(&["clp3"], beta),
             _ => gains(&["clp"], beta),
         }
+    }
+}
+
+impl VortexLag {
+    /// Points of the coarse grid of time constants.
+    const COARSE: usize = 16;
+
+    /// The time constants' range, s: from 30 ms and twice the eGK's lag to 50 times the eGK's lag
+    /// (the contract's "2 to 50 times slower"), at least 5 s.
+    fn tau_range(context: &Context<'_>) -> (f64, f64) {
+        let low = 0.03f64.max(context.slow_tau_min_s);
+        (low, 5.0f64.max(25.0 * context.slow_tau_min_s))
+    }
+
+    fn taus(context: &Context<'_>, n: usize) -> Vec<f64> {
+        let (low, high) = Self::tau_range(context);
+        log_grid(low, high, n)
     }
 }
 
@@ -82,16 +108,38 @@ impl BalanceCandidate for VortexLag {
     }
 
     /// No per-alpha gains: the sideslip drive already grows with alpha, and a slow state with
-    /// nine free gains absorbs the sim's own error from recording to recording.
+    /// nine free gains absorbs the sim's own error from recording to recording. A state that acts
+    /// only from one angle of attack upward (vortex breakdown sets in above an angle; Nelson &
+    /// Pelletier 2003) keeps one gain and profiles the angle.
     fn shapes(&self, _sample_hz: f64, context: &Context<'_>) -> Vec<Shape> {
-        log_grid(0.03, 5.0, 30)
+        let onsets: Vec<Option<f64>> =
+            std::iter::once(None).chain(context.alphas_deg.iter().skip(1).map(|alpha| Some(*alpha))).collect();
+        Self::taus(context, Self::COARSE)
             .into_iter()
-            .filter(|tau_s| *tau_s >= context.slow_tau_min_s)
             .flat_map(|tau_s| {
+                let onsets = onsets.clone();
                 Drive::ALL.into_iter().flat_map(move |drive| {
-                    [SlowLaw::State, SlowLaw::Deficit].map(move |law| Shape::SlowState { tau_s, drive, law })
+                    let onsets = onsets.clone();
+                    [SlowLaw::State, SlowLaw::Deficit].into_iter().flat_map(move |law| {
+                        onsets.clone().into_iter().map(move |at_alpha_deg| Shape::SlowState {
+                            tau_s,
+                            drive,
+                            law,
+                            at_alpha_deg,
+                        })
+                    })
                 })
             })
+            .collect()
+    }
+
+    fn refine(&self, best: &Shape, _sample_hz: f64, context: &Context<'_>) -> Vec<Shape> {
+        let Shape::SlowState { tau_s, drive, law, at_alpha_deg } = *best else { return Vec::new() };
+        let (low, high) = Self::tau_range(context);
+        let ratio = (high / low).powf(1.0 / (Self::COARSE - 1) as f64);
+        log_grid((tau_s / ratio).max(low), (tau_s * ratio).min(high), 7)
+            .into_iter()
+            .map(|tau_s| Shape::SlowState { tau_s, drive, law, at_alpha_deg })
             .collect()
     }
 
@@ -100,7 +148,10 @@ impl BalanceCandidate for VortexLag {
     /// (`LP_tau[C_l,eGK] - C_l,eGK`), and a new state driven by one of the disturbance's physical
     /// inputs, acting as itself, `LP_tau[u]`, or as its deficit, `LP_tau[u] - u`.
     fn columns(&self, shape: &Shape, run: &RunStreams, _run_idx: usize, context: &Context<'_>) -> Vec<Vec<f64>> {
-        let Shape::SlowState { tau_s, drive, law } = *shape else { return Vec::new() };
+        let Shape::SlowState { tau_s, drive, law, at_alpha_deg } = *shape else { return Vec::new() };
+        if at_alpha_deg.is_some_and(|onset| run.alpha_deg < onset - 1e-6) {
+            return vec![vec![0.0; run.len()]; 2];
+        }
         let dt_s = 1.0 / run.sample_hz;
         let input: Vec<f64> = match drive {
             Drive::RollRate => context.p_hat(run),
@@ -142,29 +193,50 @@ impl BalanceCandidate for Coupling {
     }
 
     fn shapes(&self, _sample_hz: f64, _context: &Context<'_>) -> Vec<Shape> {
-        vec![Shape::Fixed]
+        [CmuLaw::Linear, CmuLaw::SquareRoot]
+            .into_iter()
+            .flat_map(|law| COUPLING_LAGS_COARSE_S.map(|lag_s| Shape::Interaction { law, lag_s }))
+            .collect()
+    }
+
+    fn refine(&self, best: &Shape, _sample_hz: f64, _context: &Context<'_>) -> Vec<Shape> {
+        let Shape::Interaction { law, lag_s } = *best else { return Vec::new() };
+        if lag_s <= 0.0 {
+            return [0.5, 0.7]
+                .map(|share| Shape::Interaction { law, lag_s: share * COUPLING_LAGS_COARSE_S[1] })
+                .to_vec();
+        }
+        log_grid(lag_s / 2.0, lag_s * 2.0, 5).into_iter().map(|lag_s| Shape::Interaction { law, lag_s }).collect()
     }
 
     fn schedulable(&self) -> bool {
         true
     }
 
-    /// First-order interaction: the blowing (differential and total, scaled) and the jets' own
-    /// moment with their dynamics (the paper's C_l,Roll x C_l,AFC terms), times the
-    /// disturbance's own variables (its moment, the roll angle and the reduced roll rate:
-    /// blowing changes the wing's stiffness and its damping alike).
-    fn columns(&self, _shape: &Shape, run: &RunStreams, _run_idx: usize, context: &Context<'_>) -> Vec<Vec<f64>> {
+    /// The interaction: the blowing (differential and total, scaled; in Cmu or its square root)
+    /// and the jets' own moment with their dynamics (the paper's C_l,Roll x C_l,AFC terms),
+    /// times the disturbance's own variables (its moment, the roll angle and the reduced roll
+    /// rate: blowing changes the wing's stiffness and its damping alike), each through the
+    /// form's lag (a jet whose effect on the vortex builds up over convective times).
+    fn columns(&self, shape: &Shape, run: &RunStreams, _run_idx: usize, context: &Context<'_>) -> Vec<Vec<f64>> {
+        let Shape::Interaction { law, lag_s } = *shape else { return Vec::new() };
         let n = run.len();
         let cmu_ref = context.cmu_ref.max(f64::MIN_POSITIVE);
-        let differential: Vec<f64> = (0..n).map(|idx| (run.cmu[0][idx] - run.cmu[1][idx]) / cmu_ref).collect();
-        let total: Vec<f64> = (0..n).map(|idx| (run.cmu[0][idx] + run.cmu[1][idx]) / cmu_ref).collect();
+        let level = |cmu: f64| match law {
+            CmuLaw::Linear => cmu / cmu_ref,
+            CmuLaw::SquareRoot => (cmu.max(0.0) / cmu_ref).sqrt(),
+        };
+        let differential: Vec<f64> = (0..n).map(|idx| level(run.cmu[0][idx]) - level(run.cmu[1][idx])).collect();
+        let total: Vec<f64> = (0..n).map(|idx| level(run.cmu[0][idx]) + level(run.cmu[1][idx])).collect();
         let p_hat = context.p_hat(run);
         let afc = run.cl_afc();
+        let dt_s = 1.0 / run.sample_hz;
+        let lagged = |column: Vec<f64>| if lag_s > 0.0 { first_order_lag(&column, lag_s, dt_s) } else { column };
         let mut columns = Vec::with_capacity(9);
         for variable in [&run.cl_egk, &run.phi_rad, &p_hat] {
-            columns.push((0..n).map(|idx| variable[idx] * differential[idx]).collect());
-            columns.push((0..n).map(|idx| variable[idx] * total[idx]).collect());
-            columns.push((0..n).map(|idx| if run.rolls() { variable[idx] * afc[idx] } else { 0.0 }).collect());
+            columns.push(lagged((0..n).map(|idx| variable[idx] * differential[idx]).collect()));
+            columns.push(lagged((0..n).map(|idx| variable[idx] * total[idx]).collect()));
+            columns.push(lagged((0..n).map(|idx| if run.rolls() { variable[idx] * afc[idx] } else { 0.0 }).collect()));
         }
         columns
     }
@@ -236,19 +308,18 @@ mod tests {
     /// The vortex-lag form that fits `truth` best by least squares: its residual sum of
     /// squares, shape and coefficients.
     fn best_vortex_form(run: &RunStreams, truth: &[f64], context: &Context<'_>) -> (f64, Shape, Vec<f64>) {
-        VortexLag
-            .shapes(run.sample_hz, context)
-            .into_iter()
-            .map(|shape| {
-                let columns = VortexLag.columns(&shape, run, 0, context);
-                let coef = test_fit(&columns, truth);
-                let sse: f64 = (0..run.len())
-                    .map(|i| (truth[i] - columns.iter().zip(&coef).map(|(c, b)| c[i] * b).sum::<f64>()).powi(2))
-                    .sum();
-                (sse, shape, coef)
-            })
-            .min_by(|a, b| a.0.total_cmp(&b.0))
-            .expect("the family has forms")
+        let fit = |shape: Shape| {
+            let columns = VortexLag.columns(&shape, run, 0, context);
+            let coef = test_fit(&columns, truth);
+            let sse: f64 = (0..run.len())
+                .map(|i| (truth[i] - columns.iter().zip(&coef).map(|(c, b)| c[i] * b).sum::<f64>()).powi(2))
+                .sum();
+            (sse, shape, coef)
+        };
+        let best = |fits: Vec<(f64, Shape, Vec<f64>)>| fits.into_iter().min_by(|a, b| a.0.total_cmp(&b.0));
+        let coarse = best(VortexLag.shapes(run.sample_hz, context).into_iter().map(fit).collect()).expect("forms");
+        let finer: Vec<_> = VortexLag.refine(&coarse.1, run.sample_hz, context).into_iter().map(fit).collect();
+        best(finer).filter(|fine| fine.0 <= coarse.0).unwrap_or(coarse)
     }
 
     /// Every vortex-lag form is slower than the context's floor and at most 5 s, and each time
@@ -284,9 +355,12 @@ mod tests {
         let beta: Vec<f64> = run.phi_rad.iter().map(|phi| (alpha.sin() * phi.sin()).asin()).collect();
         let truth: Vec<f64> = first_order_lag(&beta, 0.8, 1.0 / run.sample_hz).iter().map(|b| 0.02 * b).collect();
         let best = best_vortex_form(&run, &truth, &context);
-        let Shape::SlowState { tau_s, drive, law } = best.1 else { unreachable!() };
-        assert_eq!((drive, law), (Drive::Sideslip, SlowLaw::State));
-        assert!((tau_s / 0.8).ln().abs() < (5.0f64 / 0.03).ln() / 29.0, "tau {tau_s}");
+        let Shape::SlowState { tau_s, drive, law, at_alpha_deg } = best.1 else { unreachable!() };
+        assert_eq!((drive, law, at_alpha_deg), (Drive::Sideslip, SlowLaw::State, None));
+        // Within one step of the refined grid (a coarse cell either side in six steps).
+        let (low, high) = VortexLag::tau_range(&context);
+        let fine_step = 2.0 * (high / low).ln() / (VortexLag::COARSE - 1) as f64 / 6.0;
+        assert!((tau_s / 0.8).ln().abs() < fine_step, "tau {tau_s}");
         let params = VortexLag.params(&best.1, &best.2, &context, &[]);
         assert_eq!(params[1].0, "per_rad_sideslip");
         assert!((params[1].1 - 0.02).abs() < 0.004, "{params:?}");
@@ -314,11 +388,12 @@ mod tests {
     fn coupling_needs_both_motion_and_blowing() {
         let context = test_context();
         let mut run = rolling_run(400);
-        let columns = Coupling.columns(&Shape::Fixed, &run, 0, &context);
+        let shape = Shape::Interaction { law: CmuLaw::Linear, lag_s: 0.0 };
+        let columns = Coupling.columns(&shape, &run, 0, &context);
         assert_eq!(columns.len(), 9);
         assert!(columns.iter().flatten().all(|v| *v == 0.0));
         run.cmu = [vec![context.cmu_ref; 400], vec![0.0; 400]];
-        let columns = Coupling.columns(&Shape::Fixed, &run, 0, &context);
+        let columns = Coupling.columns(&shape, &run, 0, &context);
         assert!(columns[0].iter().zip(&run.cl_egk).all(|(c, e)| (c - e).abs() < 1e-15));
         assert!(columns[1].iter().zip(&run.cl_egk).all(|(c, e)| (c - e).abs() < 1e-15));
     }

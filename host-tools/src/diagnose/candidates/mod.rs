@@ -25,7 +25,9 @@ use firmware_sim::effect::Effect;
 
 pub use self::actuator::{ActuatorDelay, ActuatorLag, fractional_delay};
 pub use self::aerodynamic::{Coupling, Recalibration, RollDamping, VortexLag};
-pub use self::structure::{BalanceResonance, BiasDrift, DRIFT_KNOT_SPACING_S, RESONANCE_DAMPING, resonator};
+pub use self::structure::{
+    BalanceResonance, BiasDrift, DRIFT_KNOT_SPACING_S, RESONANCE_DAMPING, lowpass2, resonator, step_times_s,
+};
 pub use self::tare::{GravityTare, InertialTare};
 use super::streams::RunStreams;
 pub use crate::fit::signals::first_order_lag;
@@ -50,6 +52,18 @@ pub trait BalanceCandidate: Sync + fmt::Debug {
     /// the recording has several).
     fn schedulable(&self) -> bool {
         false
+    }
+
+    /// Whether the effect may be named again on the remainder after it was named: the contract
+    /// allows several of it at once (one or more structural modes; a delay or a lag per jet).
+    fn repeatable(&self) -> bool {
+        false
+    }
+
+    /// Finer shapes around `best`, a shape of [`shapes`](Self::shapes) that led the coarse grid,
+    /// profiled after it (empty: the grid is already fine enough).
+    fn refine(&self, _best: &Shape, _sample_hz: f64, _context: &Context<'_>) -> Vec<Shape> {
+        Vec::new()
     }
 
     /// The regression columns of `shape` for run number `run_idx`, one gain each; every column
@@ -107,15 +121,35 @@ pub struct Form {
 pub enum Shape {
     /// Nothing to profile: the columns are fixed.
     Fixed,
-    /// A pure delay.
+    /// A pure delay of one jet or both, alone or followed by a short smoothing.
     Delay {
         /// Delay, s.
         delay_s: f64,
+        /// The jets it acts on.
+        jets: Jets,
+        /// Time constant of a first-order smoothing after the delay, s (0: none).
+        smoothing_s: f64,
     },
-    /// A first-order lag.
+    /// A first-order lag of one jet or both.
     Lag {
         /// Time constant, s.
         tau_s: f64,
+        /// The jets it acts on.
+        jets: Jets,
+    },
+    /// A second-order low-pass of unit static gain, `1 / (tau^2 s^2 + 2 zeta tau s + 1)`: two
+    /// real poles (`zeta >= 1`) or a lightly damped pair.
+    SecondOrderLag {
+        /// Time constant `1 / omega_n`, s.
+        tau_s: f64,
+        /// Damping ratio.
+        zeta: f64,
+    },
+    /// A valve whose opening is rate limited: the effective Cmu follows the recorded one at
+    /// most as fast as a full stroke in `full_stroke_s`.
+    RateLimit {
+        /// Time of a stroke from zero to the largest recorded Cmu, s.
+        full_stroke_s: f64,
     },
     /// A slower flow state with its drive.
     SlowState {
@@ -125,6 +159,8 @@ pub enum Shape {
         drive: Drive,
         /// Whether the moment is the state or its deficit from the quasi-steady input.
         law: SlowLaw,
+        /// The one angle of attack where the state acts, deg (`None`: at every angle).
+        at_alpha_deg: Option<f64>,
     },
     /// A second-order structural mode.
     Mode {
@@ -141,6 +177,22 @@ pub enum Shape {
         /// How the moment grows with the rate.
         law: DampingLaw,
     },
+    /// An inertial reaction left in the balance, seen directly or through the balance's own
+    /// low-pass, with one gain or one per run (per mounting).
+    Tare {
+        /// One gain per run instead of one for all.
+        per_run: bool,
+        /// Corner of the balance's second-order Butterworth low-pass, Hz (`None`: seen
+        /// directly).
+        corner_hz: Option<f64>,
+    },
+    /// A disturbance-blowing interaction: its law in Cmu and its lag.
+    Interaction {
+        /// How the interaction grows with the blowing.
+        law: CmuLaw,
+        /// Time constant of a first-order lag of the interaction, s (0: instantaneous).
+        lag_s: f64,
+    },
     /// A smooth trend per run: powers of time up to `degree`.
     Trend {
         /// Highest power of time.
@@ -151,6 +203,82 @@ pub enum Shape {
         /// Spacing of the knots, s.
         knot_spacing_s: f64,
     },
+    /// A zero that settles exponentially per run, `1 - exp(-t / tau)`.
+    Settle {
+        /// Time constant, s.
+        tau_s: f64,
+    },
+    /// A zero that steps: per run, up to `count` steps at the times that fit the training part
+    /// best (greedy binary segmentation of the residual).
+    Steps {
+        /// Steps per run.
+        count: u8,
+        /// Runs of the recording (every run's step times are profiled).
+        runs: u16,
+    },
+}
+
+/// Which jets an input-path effect acts on: a pneumatic line or valve may be one jet's, or
+/// shared.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Jets {
+    /// Both jets alike.
+    Both,
+    /// The port jet only.
+    Port,
+    /// The starboard jet only.
+    Starboard,
+}
+
+impl Jets {
+    /// The jet choices a recording supports: one jet alone only when both jets blow.
+    #[must_use]
+    pub fn choices(context: &Context<'_>) -> &'static [Self] {
+        if context.two_jets { &[Self::Both, Self::Port, Self::Starboard] } else { &[Self::Both] }
+    }
+
+    /// The choice's name in reports.
+    #[must_use]
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::Both => "both",
+            Self::Port => "port",
+            Self::Starboard => "starboard",
+        }
+    }
+
+    /// The recorded Cmu of both jets with `modify` applied to the chosen ones.
+    #[must_use]
+    pub fn apply(self, cmu: &[Vec<f64>; 2], modify: impl Fn(&[f64]) -> Vec<f64>) -> [Vec<f64>; 2] {
+        let acts = |side: usize| match self {
+            Self::Both => true,
+            Self::Port => side == 0,
+            Self::Starboard => side == 1,
+        };
+        [0, 1].map(|side| if acts(side) { modify(&cmu[side]) } else { cmu[side].clone() })
+    }
+}
+
+/// How a disturbance-blowing interaction grows with the blowing: linearly in Cmu, or in its
+/// square root (the jet's velocity ratio, which sets the circulation change of a Coanda jet;
+/// Englar 1975 for the circulation control's lift in sqrt(Cmu)).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CmuLaw {
+    /// In Cmu.
+    Linear,
+    /// In sqrt(Cmu).
+    SquareRoot,
+}
+
+impl CmuLaw {
+    /// The law's name in reports.
+    #[must_use]
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::Linear => "linear",
+            Self::SquareRoot => "square_root",
+        }
+    }
 }
 
 /// How a rate damping grows with the reduced roll rate `p_hat`: the linear derivative, or the
@@ -162,6 +290,8 @@ pub enum DampingLaw {
     Linear,
     /// `C_l,p|p| p_hat |p_hat|`.
     Quadratic,
+    /// `C_l,p3 p_hat^3` (a damping that stiffens with the rate, odd in it).
+    Cubic,
 }
 
 impl DampingLaw {
@@ -171,6 +301,7 @@ impl DampingLaw {
         match self {
             Self::Linear => "linear",
             Self::Quadratic => "quadratic",
+            Self::Cubic => "cubic",
         }
     }
 }
@@ -267,7 +398,14 @@ impl Form {
     pub const fn n_profiled(&self) -> usize {
         match self.shape {
             Shape::Fixed | Shape::Damping { .. } | Shape::Trend { .. } | Shape::Wander { .. } => 0,
-            Shape::Delay { .. } | Shape::Lag { .. } | Shape::SlowState { .. } => 1,
+            Shape::Lag { .. } | Shape::RateLimit { .. } | Shape::Settle { .. } => 1,
+            Shape::Delay { smoothing_s, .. } => 1 + (smoothing_s > 0.0) as usize,
+            Shape::SecondOrderLag { .. } => 2,
+            Shape::SlowState { at_alpha_deg, .. } => 1 + at_alpha_deg.is_some() as usize,
+            Shape::Tare { corner_hz, .. } => corner_hz.is_some() as usize,
+            Shape::Interaction { lag_s, .. } => (lag_s > 0.0) as usize,
+            // Every step's time is profiled, in every run.
+            Shape::Steps { count, runs } => count as usize * runs as usize,
             Shape::Mode { .. } => 3,
         }
     }
@@ -276,10 +414,19 @@ impl Form {
     #[must_use]
     pub const fn coordinate(&self) -> Option<(&'static str, f64)> {
         match self.shape {
-            Shape::Fixed | Shape::Damping { .. } => None,
-            Shape::Delay { delay_s } => Some(("delay_s", delay_s)),
-            Shape::Lag { tau_s } | Shape::SlowState { tau_s, .. } => Some(("tau_s", tau_s)),
+            Shape::Fixed | Shape::Damping { .. } | Shape::Steps { .. } => None,
+            Shape::Delay { delay_s, .. } => Some(("delay_s", delay_s)),
+            Shape::Lag { tau_s, .. }
+            | Shape::SecondOrderLag { tau_s, .. }
+            | Shape::SlowState { tau_s, .. }
+            | Shape::Settle { tau_s } => Some(("tau_s", tau_s)),
+            Shape::RateLimit { full_stroke_s } => Some(("full_stroke_s", full_stroke_s)),
             Shape::Mode { freq_hz, .. } => Some(("freq_hz", freq_hz)),
+            Shape::Tare { corner_hz, .. } => match corner_hz {
+                Some(corner_hz) => Some(("corner_hz", corner_hz)),
+                None => None,
+            },
+            Shape::Interaction { lag_s, .. } => Some(("lag_s", lag_s)),
             Shape::Trend { degree } => Some(("degree", degree as f64)),
             Shape::Wander { knot_spacing_s } => Some(("knot_spacing_s", knot_spacing_s)),
         }
@@ -291,20 +438,54 @@ impl Form {
         let mut out = match self.shape {
             Shape::Fixed => Vec::new(),
             Shape::Damping { law } => vec![("law", FormValue::Choice(law.name()))],
-            Shape::Delay { delay_s } => vec![("delay_s", FormValue::Number(delay_s))],
-            Shape::Lag { tau_s } => vec![("tau_s", FormValue::Number(tau_s))],
-            Shape::SlowState { tau_s, drive, law } => vec![
-                ("tau_s", FormValue::Number(tau_s)),
-                ("drive", FormValue::Choice(drive.name())),
-                ("law", FormValue::Choice(law.name())),
+            Shape::Delay { delay_s, jets, smoothing_s } => vec![
+                ("delay_s", FormValue::Number(delay_s)),
+                ("jets", FormValue::Choice(jets.name())),
+                ("smoothing_s", FormValue::Number(smoothing_s)),
             ],
+            Shape::Lag { tau_s, jets } => {
+                vec![
+                    ("tau_s", FormValue::Number(tau_s)),
+                    ("jets", FormValue::Choice(jets.name())),
+                    ("order", FormValue::Number(1.0)),
+                ]
+            }
+            Shape::SecondOrderLag { tau_s, zeta } => vec![
+                ("tau_s", FormValue::Number(tau_s)),
+                ("zeta", FormValue::Number(zeta)),
+                ("order", FormValue::Number(2.0)),
+            ],
+            Shape::RateLimit { full_stroke_s } => vec![("full_stroke_s", FormValue::Number(full_stroke_s))],
+            Shape::SlowState { tau_s, drive, law, at_alpha_deg } => {
+                let mut entries = vec![
+                    ("tau_s", FormValue::Number(tau_s)),
+                    ("drive", FormValue::Choice(drive.name())),
+                    ("law", FormValue::Choice(law.name())),
+                ];
+                if let Some(alpha_deg) = at_alpha_deg {
+                    entries.push(("at_alpha_deg", FormValue::Number(alpha_deg)));
+                }
+                entries
+            }
             Shape::Mode { freq_hz, zeta, drive_corner_hz } => vec![
                 ("freq_hz", FormValue::Number(freq_hz)),
                 ("zeta", FormValue::Number(zeta)),
                 ("drive_corner_hz", FormValue::Number(drive_corner_hz)),
             ],
+            Shape::Tare { per_run, corner_hz } => {
+                let mut entries = vec![("per_run", FormValue::Flag(per_run))];
+                if let Some(corner_hz) = corner_hz {
+                    entries.push(("corner_hz", FormValue::Number(corner_hz)));
+                }
+                entries
+            }
+            Shape::Interaction { law, lag_s } => {
+                vec![("cmu_law", FormValue::Choice(law.name())), ("lag_s", FormValue::Number(lag_s))]
+            }
             Shape::Trend { degree } => vec![("degree", FormValue::Number(f64::from(degree)))],
             Shape::Wander { knot_spacing_s } => vec![("knot_spacing_s", FormValue::Number(knot_spacing_s))],
+            Shape::Settle { tau_s } => vec![("settle_tau_s", FormValue::Number(tau_s))],
+            Shape::Steps { count, .. } => vec![("steps_per_run", FormValue::Number(f64::from(count)))],
         };
         if self.per_alpha {
             out.push(("per_alpha", FormValue::Flag(true)));
@@ -364,6 +545,12 @@ pub fn family_summary(candidate: Candidate, sample_hz: f64, context: &Context<'_
         }
     }));
     parts.extend(choices.into_iter().map(|(name, values)| format!("{name}: {}", values.join(" or "))));
+    if forms.first().is_some_and(|form| !candidate.refine(&form.shape, sample_hz, context).is_empty()) {
+        parts.push("the leading forms refined on a finer grid of the same parameters".into());
+    }
+    if candidate.repeatable() {
+        parts.push("may be named again on the remainder (several at once)".into());
+    }
     if candidate.schedulable() && context.alphas_deg.len() < 2 {
         parts.push("one gain (one angle of attack)".into());
     } else if candidate.schedulable() {
@@ -469,6 +656,9 @@ pub struct Context<'a> {
     pub alphas_deg: Vec<f64>,
     /// Duration of the longest run, s (the drift's knots).
     pub longest_run_s: f64,
+    /// Whether both jets blow somewhere in the recording (an effect of one jet alone can be
+    /// told from one of both).
+    pub two_jets: bool,
 }
 
 impl Context<'_> {
@@ -537,6 +727,7 @@ pub(crate) fn test_context() -> Context<'static> {
         resonance_min_hz: 4.0,
         alphas_deg: vec![0.0, 20.0],
         longest_run_s: 10.0,
+        two_jets: true,
     }
 }
 
@@ -626,7 +817,7 @@ mod tests {
     #[test]
     fn form_entries_name_every_parameter_and_count_the_profiled_ones() {
         let form = Form {
-            shape: Shape::SlowState { tau_s: 0.5, drive: Drive::RollRate, law: SlowLaw::State },
+            shape: Shape::SlowState { tau_s: 0.5, drive: Drive::RollRate, law: SlowLaw::State, at_alpha_deg: None },
             per_alpha: true,
         };
         let entries = form.entries();
@@ -650,13 +841,16 @@ mod tests {
     fn a_family_summary_states_its_forms_and_ranges() {
         let context = test_context();
         let (forms, text) = family_summary(&BalanceResonance, 1000.0, &context);
-        assert_eq!(forms, 60 * RESONANCE_DAMPING.len() * crate::diagnose::streams::MODE_DRIVE_CORNERS_HZ.len());
+        assert_eq!(forms, 40 * 3 * 2);
         assert!(text.starts_with(BalanceResonance.regressors()), "{text}");
-        assert!(text.contains("zeta 0.0050 to 0.1000 (6 values)"), "{text}");
-        assert!(text.contains("freq_hz 4.0000 to 250.0000 (60 values)"), "{text}");
+        assert!(text.contains("zeta 0.0200 to 0.2500 (3 values)"), "{text}");
+        assert!(text.contains("freq_hz 4.0000 to 300.0000 (40 values)"), "{text}");
         let (forms, text) = family_summary(&RollDamping, 1000.0, &context);
-        assert_eq!(forms, 4);
-        assert!(text.ends_with("law: linear or quadratic; one gain for all angles or one per angle"), "{text}");
+        assert_eq!(forms, 6);
+        assert!(
+            text.ends_with("law: linear or quadratic or cubic; one gain for all angles or one per angle"),
+            "{text}"
+        );
     }
 
     #[test]

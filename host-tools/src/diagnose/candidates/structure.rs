@@ -1,38 +1,68 @@
-//! The balance's own behaviour (G3, G7): a lightly damped structural mode of balance and sting
-//! excited by the load and the motion, and a slow drift of its zero (docs/diagnosis.md, Balance
-//! resonance and Bias drift).
+//! The balance's own behaviour (G3, G7): lightly damped structural modes of balance and sting
+//! excited by the load, the motion and the blowing, and a slow drift of its zero (docs/diagnosis.md,
+//! Balance resonance and Bias drift).
 
 use firmware_sim::effect::Effect;
 
 use super::{BalanceCandidate, Context, Params, Shape, log_grid};
 use crate::diagnose::streams::{MODE_DRIVE_CORNERS_HZ, RunStreams};
 
-/// Damping ratios of the balance-resonance candidate: from 0.005 (a bolted steel sting) to 0.1,
-/// the span of "lightly damped" in the contract's definition (docs/diagnosis.md, Balance
-/// resonance); a
-/// more damped "mode" is a broad filter that any error of the sim's dynamics can feed.
-pub const RESONANCE_DAMPING: [f64; 6] = [0.005, 0.01, 0.02, 0.04, 0.07, 0.1];
+/// Damping ratios of the balance-resonance candidate's fine grid: from 0.005 (a bolted steel
+/// sting) to 0.3, the span of "lightly damped" in the contract's definition (docs/diagnosis.md,
+/// Balance resonance); a more damped "mode" is a broad filter that any error of the sim's
+/// dynamics can feed.
+pub const RESONANCE_DAMPING: [f64; 9] = [0.005, 0.01, 0.02, 0.04, 0.07, 0.1, 0.15, 0.2, 0.3];
+
+/// Damping ratios of the coarse grid: one narrow, one moderate, one broad mode, so that a mode of
+/// any damping correlates with one of them near its frequency and the fine grid takes it from
+/// there.
+const RESONANCE_DAMPING_COARSE: [f64; 3] = [0.02, 0.08, 0.25];
+
+/// Natural frequencies of the coarse grid (logarithmic), and of the fine grid around each
+/// leading coarse frequency (one coarse cell either side).
+const RESONANCE_COARSE: usize = 40;
+const RESONANCE_FINE: usize = 9;
+
+/// Corners of the acceleration's smoother on the coarse grid: the sharpest and the smoothest
+/// but one (the refinement tries every corner of [`MODE_DRIVE_CORNERS_HZ`] at the leading mode).
+const RESONANCE_CORNERS_COARSE: [f64; 2] = [MODE_DRIVE_CORNERS_HZ[1], MODE_DRIVE_CORNERS_HZ[3]];
 
 /// Knot spacings of the drift's piecewise-linear form, s: a zero that wanders (a random walk)
 /// rather than a smooth trend.
 pub const DRIFT_KNOT_SPACING_S: [f64; 2] = [4.0, 2.0];
 
+/// Time constants of the drift's exponential settling, s: from 0.8 s (the contract's drift is
+/// slower than 0.2 Hz, `1 / (2 pi 0.2 Hz)`) to 30 s, beyond which it is a ramp.
+const DRIFT_SETTLE_S: [f64; 6] = [0.8, 1.6, 3.2, 6.4, 13.0, 30.0];
+
+/// Most steps per run of the drift's stepped form.
+const DRIFT_MAX_STEPS: u8 = 3;
+
 /// `balance_resonance`: a mode from [`Context::resonance_min_hz`] to 0.35 of the sample rate
-/// (at most 250 Hz), damping [`RESONANCE_DAMPING`], driven by the sim's load and the inertial
-/// load of the motion, the acceleration smoothed at one of [`MODE_DRIVE_CORNERS_HZ`].
+/// (at most 300 Hz), damping [`RESONANCE_DAMPING`], driven by the sim's load, the inertial load of
+/// the motion (the acceleration smoothed at one of [`MODE_DRIVE_CORNERS_HZ`]) and the blowing.
+/// Several modes are named one after the other on the remainder.
 #[derive(Debug, Clone, Copy)]
 pub struct BalanceResonance;
 
+impl BalanceResonance {
+    fn band_hz(sample_hz: f64, context: &Context<'_>) -> (f64, f64) {
+        let top_hz = (0.35 * sample_hz).min(300.0);
+        (context.resonance_min_hz.min(0.5 * top_hz), top_hz)
+    }
+}
+
 /// `bias_drift`: a slow drift of the zero per run, from the run's own tare at its start: a
-/// smooth trend (powers of time, degree 1 to 3) or a zero that wanders (piecewise linear between
+/// smooth trend (powers of time, degree 1 to 3), a zero that wanders (piecewise linear between
 /// knots [`DRIFT_KNOT_SPACING_S`] apart; beyond the training part it holds its last slope, all a
-/// drift lets anyone predict).
+/// drift lets anyone predict), an exponential settling, or steps at times found on the training
+/// part.
 #[derive(Debug, Clone, Copy)]
 pub struct BiasDrift;
 
 impl BalanceCandidate for BalanceResonance {
     fn regressors(&self) -> &'static str {
-        "(H - 1) of the sim's load and of the roll acceleration over q S b, H a unit-gain mode"
+        "(H - 1) of the sim's load, of the roll acceleration over q S b and of the plant's moment (the blowing), H a unit-gain mode"
     }
 
     fn effect(&self) -> Option<Effect> {
@@ -43,14 +73,36 @@ impl BalanceCandidate for BalanceResonance {
         "a wind-off tap test of balance and sting"
     }
 
+    /// A second mode is named on the remainder of the first.
+    fn repeatable(&self) -> bool {
+        true
+    }
+
     fn shapes(&self, sample_hz: f64, context: &Context<'_>) -> Vec<Shape> {
-        let top_hz = (0.35 * sample_hz).min(250.0);
+        let (low, high) = Self::band_hz(sample_hz, context);
         let mut shapes = Vec::new();
-        for freq_hz in log_grid(context.resonance_min_hz.min(0.5 * top_hz), top_hz, 60) {
-            for zeta in RESONANCE_DAMPING {
-                for drive_corner_hz in MODE_DRIVE_CORNERS_HZ {
+        for freq_hz in log_grid(low, high, RESONANCE_COARSE) {
+            for zeta in RESONANCE_DAMPING_COARSE {
+                for drive_corner_hz in RESONANCE_CORNERS_COARSE {
                     shapes.push(Shape::Mode { freq_hz, zeta, drive_corner_hz });
                 }
+            }
+        }
+        shapes
+    }
+
+    fn refine(&self, best: &Shape, sample_hz: f64, context: &Context<'_>) -> Vec<Shape> {
+        let Shape::Mode { freq_hz, zeta, drive_corner_hz } = *best else { return Vec::new() };
+        let (low, high) = Self::band_hz(sample_hz, context);
+        let ratio = (high / low).powf(1.0 / (RESONANCE_COARSE - 1) as f64);
+        let mut shapes: Vec<Shape> = MODE_DRIVE_CORNERS_HZ
+            .iter()
+            .filter(|corner| **corner != drive_corner_hz)
+            .map(|&drive_corner_hz| Shape::Mode { freq_hz, zeta, drive_corner_hz })
+            .collect();
+        for freq_hz in log_grid((freq_hz / ratio).max(low), (freq_hz * ratio).min(high), RESONANCE_FINE) {
+            for zeta in RESONANCE_DAMPING {
+                shapes.push(Shape::Mode { freq_hz, zeta, drive_corner_hz });
             }
         }
         shapes
@@ -61,13 +113,15 @@ impl BalanceCandidate for BalanceResonance {
         let dt_s = 1.0 / run.sample_hz;
         let load = run.cl_sim();
         let Some(acceleration) = run.acceleration_at(drive_corner_hz) else { return Vec::new() };
-        let [load_excess, inertial_excess] =
-            mode_excess_pair([&load, acceleration], [1.0, 1.0 / context.moment_scale_nm], freq_hz, zeta, dt_s);
-        vec![load_excess, inertial_excess]
+        // The blowing excites the mode through the jets' own moment, apart from the rest of the
+        // load (a mode fed by the jets' reaction, not by the flow over the wing).
+        let blowing = run.cl_afc();
+        let scale = [1.0, 1.0 / context.moment_scale_nm, 1.0];
+        mode_excess([&load, acceleration, &blowing], scale, freq_hz, zeta, dt_s).to_vec()
     }
 
     fn params(&self, _shape: &Shape, beta: &[f64], _context: &Context<'_>, _columns: &[Vec<Vec<f64>>]) -> Params {
-        super::gains(&["gain_load", "gain_inertial"], beta)
+        super::gains(&["gain_load", "gain_inertial", "gain_blowing"], beta)
     }
 }
 
@@ -84,9 +138,14 @@ impl BalanceCandidate for BiasDrift {
         "wind-off zero readings before and after each run"
     }
 
-    fn shapes(&self, _sample_hz: f64, _context: &Context<'_>) -> Vec<Shape> {
+    fn shapes(&self, _sample_hz: f64, context: &Context<'_>) -> Vec<Shape> {
         let trends = (1..=3).map(|degree| Shape::Trend { degree });
-        trends.chain(DRIFT_KNOT_SPACING_S.map(|knot_spacing_s| Shape::Wander { knot_spacing_s })).collect()
+        let runs = u16::try_from(context.n_runs).unwrap_or(u16::MAX);
+        trends
+            .chain(DRIFT_KNOT_SPACING_S.map(|knot_spacing_s| Shape::Wander { knot_spacing_s }))
+            .chain(DRIFT_SETTLE_S.map(|tau_s| Shape::Settle { tau_s }))
+            .chain((1..=DRIFT_MAX_STEPS).map(|count| Shape::Steps { count, runs }))
+            .collect()
     }
 
     fn columns(&self, shape: &Shape, run: &RunStreams, run_idx: usize, context: &Context<'_>) -> Vec<Vec<f64>> {
@@ -103,6 +162,11 @@ impl BalanceCandidate for BiasDrift {
             }
             Shape::Trend { degree } => (1..=i32::from(degree.max(1)))
                 .map(|power| Box::new(move |t: f64| (t / duration).powi(power)) as Box<dyn Fn(f64) -> f64>)
+                .collect(),
+            Shape::Settle { tau_s } => vec![Box::new(move |t: f64| 1.0 - (-t / tau_s).exp())],
+            Shape::Steps { count, .. } => step_times_s(run, usize::from(count))
+                .into_iter()
+                .map(|at_s| Box::new(move |t: f64| if t >= at_s { 1.0 } else { 0.0 }) as Box<dyn Fn(f64) -> f64>)
                 .collect(),
             _ => return Vec::new(),
         };
@@ -138,8 +202,62 @@ fn drift_width(shape: &Shape, context: &Context<'_>) -> usize {
     match *shape {
         Shape::Wander { knot_spacing_s } => 1 + (context.longest_run_s / knot_spacing_s).floor() as usize,
         Shape::Trend { degree } => usize::from(degree.max(1)),
+        Shape::Settle { .. } => 1,
+        Shape::Steps { count, .. } => usize::from(count),
         _ => 0,
     }
+}
+
+/// The times of up to `count` steps of the run's zero, s from its start: greedy binary
+/// segmentation of the balance residual on the training part's fit samples (selection blocks and
+/// the held-out part choose nothing), each split the one that removes the most squared deviation
+/// from the segment means (Scott & Knott 1974; the least-squares change point of Hinkley 1970).
+/// Fewer when a segment is too short to split.
+#[must_use]
+pub fn step_times_s(run: &RunStreams, count: usize) -> Vec<f64> {
+    let samples: Vec<(f64, f64)> =
+        run.fit_samples().filter(|&i| run.residual[i].is_finite()).map(|i| (run.t_s[i], run.residual[i])).collect();
+    let min_len = (run.sample_hz * 0.2) as usize + 1;
+    let mut bounds = vec![0, samples.len()];
+    let mut times = Vec::new();
+    for _ in 0..count {
+        let best = bounds
+            .windows(2)
+            .filter_map(|w| best_split(&samples[w[0]..w[1]], min_len).map(|(at, gain)| (w[0] + at, gain)))
+            .max_by(|a, b| a.1.total_cmp(&b.1));
+        let Some((at, _)) = best else { break };
+        times.push(samples[at].0 - run.t_s.first().copied().unwrap_or(0.0));
+        bounds.push(at);
+        bounds.sort_unstable();
+    }
+    times.sort_by(f64::total_cmp);
+    times
+}
+
+/// The split of `segment` into two parts of at least `min_len` samples that removes the most
+/// squared deviation from their means, and how much it removes.
+fn best_split(segment: &[(f64, f64)], min_len: usize) -> Option<(usize, f64)> {
+    let n = segment.len();
+    if n < 2 * min_len {
+        return None;
+    }
+    let total: f64 = segment.iter().map(|(_, r)| r).sum();
+    let mut left = 0.0;
+    let mut best: Option<(usize, f64)> = None;
+    for (k, (_, r)) in segment.iter().enumerate().take(n - min_len) {
+        left += r;
+        let m = k + 1;
+        if m < min_len {
+            continue;
+        }
+        // Between-segment sum of squares of a split after `m` samples.
+        let right = total - left;
+        let gain = left * left / m as f64 + right * right / (n - m) as f64 - total * total / n as f64;
+        if best.is_none_or(|(_, g)| gain > g) {
+            best = Some((m, gain));
+        }
+    }
+    best
 }
 
 /// Coefficients `(b, a1, a2)` of a unit-gain second-order resonator
@@ -170,26 +288,39 @@ pub fn resonator(values: &[f64], freq_hz: f64, zeta: f64, dt_s: f64) -> Vec<f64>
         .collect()
 }
 
-/// What a mode adds to each of two inputs, `scale (H - 1) u` with `H` the [`resonator`], in one
-/// pass: the two recursions are independent, so they run side by side (the recursion is bound by
-/// its latency, and the family profiles thousands of forms).
-fn mode_excess_pair(inputs: [&[f64]; 2], scale: [f64; 2], freq_hz: f64, zeta: f64, dt_s: f64) -> [Vec<f64>; 2] {
+/// A unit-gain second-order Butterworth low-pass (a [`resonator`] with damping `1/sqrt(2)`): the
+/// balance's own anti-alias filter, causal as the balance's electronics are.
+#[must_use]
+pub fn lowpass2(values: &[f64], corner_hz: f64, dt_s: f64) -> Vec<f64> {
+    resonator(values, corner_hz, std::f64::consts::FRAC_1_SQRT_2, dt_s)
+}
+
+/// What a mode adds to each of `N` inputs, `scale (H - 1) u` with `H` the [`resonator`], in one
+/// pass: the recursions are independent, so they run side by side (the recursion is bound by its
+/// latency, and the family profiles hundreds of forms).
+fn mode_excess<const N: usize>(
+    inputs: [&[f64]; N],
+    scale: [f64; N],
+    freq_hz: f64,
+    zeta: f64,
+    dt_s: f64,
+) -> [Vec<f64>; N] {
     let (b, a1, a2) = resonator_coefficients(freq_hz, zeta, dt_s);
-    let n = inputs[0].len().min(inputs[1].len());
-    let (mut out_a, mut out_b) = (vec![0.0; n], vec![0.0; n]);
-    let [first_a, first_b] = inputs.map(|values| values.first().copied().unwrap_or(0.0));
-    let (mut xa1, mut xa2, mut ya1, mut ya2) = (first_a, first_a, first_a, first_a);
-    let (mut xb1, mut xb2, mut yb1, mut yb2) = (first_b, first_b, first_b, first_b);
-    let samples = inputs[0].iter().zip(inputs[1]).zip(out_a.iter_mut().zip(out_b.iter_mut()));
-    for ((&xa, &xb), (oa, ob)) in samples {
-        let ya = b[0] * xa + b[1] * xa1 + b[2] * xa2 - a1 * ya1 - a2 * ya2;
-        let yb = b[0] * xb + b[1] * xb1 + b[2] * xb2 - a1 * yb1 - a2 * yb2;
-        (xa2, xa1, ya2, ya1) = (xa1, xa, ya1, ya);
-        (xb2, xb1, yb2, yb1) = (xb1, xb, yb1, yb);
-        *oa = scale[0] * (ya - xa);
-        *ob = scale[1] * (yb - xb);
+    let n = inputs.iter().map(|values| values.len()).min().unwrap_or(0);
+    let mut out: [Vec<f64>; N] = std::array::from_fn(|_| vec![0.0; n]);
+    let first = inputs.map(|values| values.first().copied().unwrap_or(0.0));
+    // Per input: x[k-1], x[k-2], y[k-1], y[k-2].
+    let mut state: [[f64; 4]; N] = first.map(|x| [x; 4]);
+    for idx in 0..n {
+        for k in 0..N {
+            let x = inputs[k][idx];
+            let [x1, x2, y1, y2] = state[k];
+            let y = b[0] * x + b[1] * x1 + b[2] * x2 - a1 * y1 - a2 * y2;
+            state[k] = [x, x1, y, y1];
+            out[k][idx] = scale[k] * (y - x);
+        }
     }
-    [out_a, out_b]
+    out
 }
 
 #[cfg(test)]
@@ -215,7 +346,7 @@ mod tests {
     fn paired_mode_excess_is_the_resonator_less_its_input() {
         let a: Vec<f64> = (0..500).map(|i| (i as f64 * 0.37).sin() + 0.2).collect();
         let b: Vec<f64> = (0..500).map(|i| (i as f64 * 0.011).cos() * 3.0).collect();
-        let [ea, eb] = mode_excess_pair([&a, &b], [1.0, 0.5], 30.0, 0.02, 1e-3);
+        let [ea, eb] = mode_excess([&a, &b], [1.0, 0.5], 30.0, 0.02, 1e-3);
         for (input, excess, scale) in [(&a, &ea, 1.0), (&b, &eb, 0.5)] {
             let direct = resonator(input, 30.0, 0.02, 1e-3);
             for idx in 0..input.len() {
@@ -257,7 +388,7 @@ mod tests {
         let (freq_hz, zeta, gain) = (35.0, 0.09, 2.0);
         let true_accel: Vec<f64> = (0..n).map(|i| accel(t(i))).collect();
         let [_, effect] =
-            mode_excess_pair([&true_accel, &true_accel], [1.0, gain / context.moment_scale_nm], freq_hz, zeta, 1e-3);
+            mode_excess([&true_accel, &true_accel], [1.0, gain / context.moment_scale_nm], freq_hz, zeta, 1e-3);
         let fitted: Vec<(f64, f64)> = MODE_DRIVE_CORNERS_HZ
             .iter()
             .map(|&drive_corner_hz| {
@@ -273,18 +404,58 @@ mod tests {
         assert!((best.0 - gain).abs() < 0.2 * gain && best.1 < 0.1, "{fitted:?}");
     }
 
-    /// The resonance's family starts at the context's floor, stops at 0.35 of the sample rate,
-    /// and holds damping from 0.005.
+    /// The resonance's coarse grid starts at the context's floor and stops at 0.35 of the sample
+    /// rate; its refinement around a leading form holds every damping from 0.005 to 0.3 within a
+    /// coarse cell of its frequency.
     #[test]
     fn resonance_forms_span_the_stated_ranges() {
-        let shapes = BalanceResonance.shapes(1000.0, &test_context());
-        let (mut low, mut high, mut least_zeta) = (f64::MAX, 0.0f64, f64::MAX);
-        for shape in &shapes {
-            let Shape::Mode { freq_hz, zeta, .. } = *shape else { panic!("{shape:?}") };
-            (low, high, least_zeta) = (low.min(freq_hz), high.max(freq_hz), least_zeta.min(zeta));
-        }
-        assert!((low - 4.0).abs() < 1e-9 && (high - 250.0).abs() < 1e-9 && least_zeta == 0.005);
-        assert_eq!(shapes.len(), 60 * RESONANCE_DAMPING.len() * MODE_DRIVE_CORNERS_HZ.len());
+        let context = test_context();
+        let shapes = BalanceResonance.shapes(1000.0, &context);
+        let span = |shapes: &[Shape]| {
+            let (mut low, mut high, mut least_zeta, mut most_zeta) = (f64::MAX, 0.0f64, f64::MAX, 0.0f64);
+            for shape in shapes {
+                let Shape::Mode { freq_hz, zeta, .. } = *shape else { panic!("{shape:?}") };
+                (low, high) = (low.min(freq_hz), high.max(freq_hz));
+                (least_zeta, most_zeta) = (least_zeta.min(zeta), most_zeta.max(zeta));
+            }
+            (low, high, least_zeta, most_zeta)
+        };
+        let (low, high, _, _) = span(&shapes);
+        assert!((low - 4.0).abs() < 1e-9 && (high - 300.0).abs() < 1e-9, "{low} {high}");
+        assert_eq!(shapes.len(), RESONANCE_COARSE * RESONANCE_DAMPING_COARSE.len() * RESONANCE_CORNERS_COARSE.len());
+        let fine =
+            BalanceResonance.refine(&Shape::Mode { freq_hz: 50.0, zeta: 0.08, drive_corner_hz: 8.0 }, 1000.0, &context);
+        let corners: std::collections::BTreeSet<u64> = fine
+            .iter()
+            .map(|s| if let Shape::Mode { drive_corner_hz, .. } = s { drive_corner_hz.to_bits() } else { 0 })
+            .collect();
+        assert_eq!(corners.len(), MODE_DRIVE_CORNERS_HZ.len(), "every corner at the leading mode");
+        let (low, high, least_zeta, most_zeta) = span(&fine);
+        let ratio = (300.0f64 / 4.0).powf(1.0 / (RESONANCE_COARSE - 1) as f64);
+        assert!((low - 50.0 / ratio).abs() < 1e-9 && (high - 50.0 * ratio).abs() < 1e-9, "{low} {high}");
+        assert_eq!((least_zeta, most_zeta), (0.005, 0.3));
+    }
+
+    /// A zero that steps twice in a run is found at its two steps (to a few samples) from the
+    /// training part, and a step form of two steps reproduces it.
+    #[test]
+    fn a_stepped_zero_is_found_at_its_steps() {
+        let sample_hz = 100.0;
+        let n = 3000;
+        let mut run = synthetic_run(sample_hz, vec![vec![0.0; n]], vec![vec![0.0; n]]);
+        run.training = 0..2400;
+        run.residual = run
+            .t_s
+            .iter()
+            .enumerate()
+            .map(|(i, t)| {
+                let noise = 2e-4 * ((i * 7919 % 101) as f64 / 50.0 - 1.0);
+                noise + if *t >= 7.3 { 2e-3 } else { 0.0 } + if *t >= 15.55 { -3e-3 } else { 0.0 }
+            })
+            .collect();
+        let times = step_times_s(&run, 2);
+        assert_eq!(times.len(), 2);
+        assert!((times[0] - 7.3).abs() < 0.05 && (times[1] - 15.55).abs() < 0.05, "{times:?}");
     }
 
     /// A zero that wanders, piecewise linear with kinks at 2 s and 6 s, is reproduced exactly by

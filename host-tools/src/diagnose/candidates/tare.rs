@@ -4,18 +4,21 @@
 
 use firmware_sim::effect::Effect;
 
-use super::{BalanceCandidate, Context, Params, Shape, gains};
+use super::{BalanceCandidate, Context, Params, Shape, gains, log_grid, lowpass2};
 use crate::diagnose::streams::RunStreams;
 
 /// Standard gravity, m/s^2.
 const G_MPS2: f64 = 9.806_65;
 
-/// `inertial_tare`: `-I phi_ddot / (q S b)` left in the balance.
+/// `inertial_tare`: `-I phi_ddot / (q S b)` left in the balance, with one inertia or one per run
+/// (a model remounted between runs), seen directly or through the balance's own second-order
+/// low-pass (corner 5 Hz to 0.35 of the sample rate).
 #[derive(Debug, Clone, Copy)]
 pub struct InertialTare;
 
 /// `gravity_tare`: `m g d sin(phi + phase) / (q S b)` (the weight moment about the roll axis,
-/// with the offset it leaves at `phi = 0`).
+/// with the offset it leaves at `phi = 0`), one size or one per angle of attack (a centre of
+/// gravity whose arm about the roll axis turns with the pitch, e.g. with cos alpha).
 #[derive(Debug, Clone, Copy)]
 pub struct GravityTare;
 
@@ -32,19 +35,63 @@ impl BalanceCandidate for InertialTare {
         "wind-off runs with the same roll motion (the inertial reaction stays, the aerodynamics vanish)"
     }
 
-    fn shapes(&self, _sample_hz: f64, _context: &Context<'_>) -> Vec<Shape> {
-        vec![Shape::Fixed]
+    fn shapes(&self, sample_hz: f64, _context: &Context<'_>) -> Vec<Shape> {
+        let corners = log_grid(TARE_CORNER_LOW_HZ, (0.35 * sample_hz).min(TARE_CORNER_HIGH_HZ), TARE_CORNERS);
+        [false, true]
+            .into_iter()
+            .flat_map(|per_run| {
+                std::iter::once(Shape::Tare { per_run, corner_hz: None }).chain(
+                    corners
+                        .clone()
+                        .into_iter()
+                        .map(move |corner_hz| Shape::Tare { per_run, corner_hz: Some(corner_hz) }),
+                )
+            })
+            .collect()
     }
 
-    fn columns(&self, _shape: &Shape, run: &RunStreams, _run_idx: usize, _context: &Context<'_>) -> Vec<Vec<f64>> {
-        vec![run.phi_ddot_rad_s2.clone()]
+    fn columns(&self, shape: &Shape, run: &RunStreams, run_idx: usize, context: &Context<'_>) -> Vec<Vec<f64>> {
+        let Shape::Tare { per_run, corner_hz } = *shape else { return Vec::new() };
+        let seen = match corner_hz {
+            Some(corner_hz) => lowpass2(&run.phi_ddot_rad_s2, corner_hz, 1.0 / run.sample_hz),
+            None => run.phi_ddot_rad_s2.clone(),
+        };
+        if !per_run {
+            return vec![seen];
+        }
+        // One column per run, zero in the other runs.
+        let mut out = vec![vec![0.0; run.len()]; context.n_runs];
+        out[run_idx] = seen;
+        out
     }
 
-    fn params(&self, _shape: &Shape, beta: &[f64], context: &Context<'_>, _columns: &[Vec<Vec<f64>>]) -> Params {
+    /// With one inertia per run, the median of the runs that roll (the others have no
+    /// acceleration and a zero gain), and its spread.
+    fn params(&self, shape: &Shape, beta: &[f64], context: &Context<'_>, _columns: &[Vec<Vec<f64>>]) -> Params {
         // Balance = aero - I phi_ddot: the column's coefficient is -I / (q S b).
-        gains(&["ixx_kgm2"], &beta.iter().map(|b| -b * context.moment_scale_nm).collect::<Vec<_>>())
+        let inertia: Vec<f64> = beta.iter().map(|b| -b * context.moment_scale_nm).collect();
+        let mut out = match shape {
+            Shape::Tare { per_run: true, .. } => {
+                let mut rolling: Vec<f64> = inertia.iter().copied().filter(|i| *i != 0.0).collect();
+                rolling.sort_by(f64::total_cmp);
+                let median = rolling.get(rolling.len() / 2).copied().unwrap_or(0.0);
+                let spread = rolling.last().copied().unwrap_or(0.0) - rolling.first().copied().unwrap_or(0.0);
+                vec![("ixx_kgm2".to_owned(), median), ("ixx_spread_kgm2".to_owned(), spread)]
+            }
+            _ => gains(&["ixx_kgm2"], &inertia),
+        };
+        if let Shape::Tare { corner_hz: Some(corner_hz), .. } = shape {
+            out.push(("balance_corner_hz".to_owned(), *corner_hz));
+        }
+        out
     }
 }
+
+/// The balance low-pass corners the inertial tare may be seen through, Hz: from 5 Hz (a balance
+/// filtered just above a slow motion) to 200 Hz, capped at 0.35 of the sample rate.
+const TARE_CORNER_LOW_HZ: f64 = 5.0;
+const TARE_CORNER_HIGH_HZ: f64 = 200.0;
+const TARE_CORNERS: usize = 10;
 
 impl BalanceCandidate for GravityTare {
     fn regressors(&self) -> &'static str {
@@ -57,6 +104,10 @@ impl BalanceCandidate for GravityTare {
 
     fn separating_experiment(&self) -> &'static str {
         "wind-off runs at held roll angles (the weight moment stays) or a second free-stream speed"
+    }
+
+    fn schedulable(&self) -> bool {
+        true
     }
 
     fn shapes(&self, _sample_hz: f64, _context: &Context<'_>) -> Vec<Shape> {
@@ -94,9 +145,10 @@ mod tests {
         let mut run = synthetic_run(1000.0, vec![vec![0.0; 2000]], vec![vec![0.0; 2000]]);
         run.phi_ddot_rad_s2 = (0..2000).map(|i| 40.0 * (i as f64 * 0.013).sin()).collect();
         let residual: Vec<f64> = run.phi_ddot_rad_s2.iter().map(|a| -ixx_kgm2 * a / context.moment_scale_nm).collect();
-        let columns = InertialTare.columns(&Shape::Fixed, &run, 0, &context);
+        let shape = Shape::Tare { per_run: false, corner_hz: None };
+        let columns = InertialTare.columns(&shape, &run, 0, &context);
         let beta = test_fit(&columns, &residual);
-        let params = InertialTare.params(&Shape::Fixed, &beta, &context, &[columns]);
+        let params = InertialTare.params(&shape, &beta, &context, &[columns]);
         assert_eq!(params[0].0, "ixx_kgm2");
         assert!((params[0].1 / ixx_kgm2 - 1.0).abs() < 1e-9, "{params:?}");
     }
@@ -118,5 +170,48 @@ mod tests {
         assert!((get("weight_moment_nm") - moment_nm).abs() < 1e-9);
         assert!((get("mass_offset_kgm") - moment_nm / 9.806_65).abs() < 1e-9);
         assert!((get("phase_deg") - 30.0).abs() < 1e-6);
+    }
+
+    /// A tare seen through the balance's 20 Hz low-pass with a different inertia per run is
+    /// found in the per-run low-pass form, with each run's inertia, and fits better than the
+    /// direct form of one inertia.
+    #[test]
+    fn inertial_tare_through_the_balance_filter_per_run_is_recovered() {
+        let context = test_context();
+        let n = 3000;
+        let runs: Vec<RunStreams> = (0..2)
+            .map(|k| {
+                let mut run = synthetic_run(1000.0, vec![vec![0.0; n]], vec![vec![0.0; n]]);
+                run.phi_ddot_rad_s2 = (0..n)
+                    .map(|i| 40.0 * (i as f64 * 0.013 + k as f64).sin() + 9.0 * (i as f64 * 0.05).sin())
+                    .collect();
+                run
+            })
+            .collect();
+        let inertia = [3.0e-4, 4.0e-4];
+        let truth: Vec<f64> = runs
+            .iter()
+            .zip(inertia)
+            .flat_map(|(run, ixx)| lowpass2(&run.phi_ddot_rad_s2, 20.0, 1e-3).into_iter().map(move |a| -ixx * a / 2.0))
+            .collect();
+        let fit = |shape: &Shape| {
+            let per_run: Vec<Vec<Vec<f64>>> =
+                runs.iter().enumerate().map(|(k, run)| InertialTare.columns(shape, run, k, &context)).collect();
+            let columns: Vec<Vec<f64>> =
+                (0..per_run[0].len()).map(|c| per_run.iter().flat_map(|cols| cols[c].clone()).collect()).collect();
+            let beta = test_fit(&columns, &truth);
+            let sse: f64 = (0..truth.len())
+                .map(|i| (truth[i] - columns.iter().zip(&beta).map(|(c, b)| c[i] * b).sum::<f64>()).powi(2))
+                .sum();
+            (sse, beta)
+        };
+        let filtered = Shape::Tare { per_run: true, corner_hz: Some(20.0) };
+        let (sse, beta) = fit(&filtered);
+        let (direct_sse, _) = fit(&Shape::Tare { per_run: false, corner_hz: None });
+        assert!(sse < 1e-6 * direct_sse, "{sse} vs {direct_sse}");
+        let params = InertialTare.params(&filtered, &beta, &context, &[]);
+        assert_eq!(params[0].0, "ixx_kgm2");
+        assert!((params[1].1 - 1.0e-4).abs() < 1e-9, "{params:?}");
+        assert_eq!(params[2], ("balance_corner_hz".to_owned(), 20.0));
     }
 }
