@@ -147,6 +147,7 @@ pub fn run(dir: &Path, progress: &(dyn Fn() + Sync)) -> Result<Outcome, External
                         verdict: diagnosis.verdict.as_str().to_owned(),
                         named: diagnosis.effects.iter().map(|e| e.name.clone()).collect(),
                         named_channels: diagnosis.where_.channels.clone(),
+                        named_params: diagnosis.effects.first().map(|e| e.params.clone()).unwrap_or_default(),
                         shrink: first.map(|e| e.shrink),
                         shrink_total: first.map(|e| e.shrink_total),
                         diagnosis_s,
@@ -156,6 +157,7 @@ pub fn run(dir: &Path, progress: &(dyn Fn() + Sync)) -> Result<Outcome, External
                     verdict: format!("error: {error}"),
                     named: Vec::new(),
                     named_channels: Vec::new(),
+                    named_params: Default::default(),
                     shrink: None,
                     shrink_total: None,
                     diagnosis_s,
@@ -181,8 +183,11 @@ pub fn run(dir: &Path, progress: &(dyn Fn() + Sync)) -> Result<Outcome, External
         if truth.id != case.id {
             return Err(truth_error(format!("holds case {}, expected case {}", truth.id, case.id)));
         }
-        if truth.class != "none" && super::class_of(&truth.class).is_none() {
-            return Err(truth_error(format!("unknown class \"{}\"", truth.class)));
+        if truth.class.is_empty() || !truth.class.bytes().all(|b| b.is_ascii_lowercase() || b == b'_') {
+            return Err(truth_error(format!(
+                "class \"{}\" is not a name (none, an effect of the vocabulary, or one outside it in snake_case)",
+                truth.class
+            )));
         }
         let mut record = CaseRecord {
             id: case.id,
@@ -196,6 +201,7 @@ pub fn run(dir: &Path, progress: &(dyn Fn() + Sync)) -> Result<Outcome, External
             verdict: diagnosed.verdict,
             named: diagnosed.named,
             named_channels: diagnosed.named_channels,
+            named_params: diagnosed.named_params,
             shrink: diagnosed.shrink,
             shrink_total: diagnosed.shrink_total,
             correct: false,
@@ -211,6 +217,7 @@ struct Diagnosed {
     verdict: String,
     named: Vec<String>,
     named_channels: Vec<String>,
+    named_params: std::collections::BTreeMap<String, serde_json::Value>,
     shrink: Option<f64>,
     shrink_total: Option<f64>,
     diagnosis_s: f64,

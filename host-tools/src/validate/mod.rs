@@ -52,10 +52,12 @@ pub fn class_of(name: &str) -> Option<Effect> {
     name.parse().ok()
 }
 
-/// True for the classes outside the diagnosis vocabulary.
+/// True for the classes outside the diagnosis vocabulary: every class but `none` and the
+/// vocabulary's names (another program's campaign may inject outside effects this tunnel has
+/// no name for: a tone, encoder backlash, balance saturation).
 #[must_use]
 pub fn outside_vocabulary(class: &str) -> bool {
-    class_of(class).is_some_and(|effect| !effect.in_vocabulary())
+    class != "none" && !class_of(class).is_some_and(Effect::in_vocabulary)
 }
 
 /// Settings of a campaign.
@@ -118,6 +120,9 @@ pub struct CaseRecord {
     pub named: Vec<String>,
     /// The channels the diagnosis named for a sensor effect.
     pub named_channels: Vec<String>,
+    /// The first named effect's fitted parameters (its form included), for the parameter
+    /// recovery of a campaign whose truth states them.
+    pub named_params: std::collections::BTreeMap<String, serde_json::Value>,
     /// Held-out shrink of the first named effect (beyond the sim's own floor); `None` where it
     /// is not measured (a dead channel has no reading left to compare: its 1 is by definition).
     pub shrink: Option<f64>,
@@ -211,18 +216,19 @@ fn run_case(config: &CampaignConfig, id: usize, class: Option<Effect>, models: &
     let diagnose_config = DiagnoseConfig { signature: Some(signature), ..DiagnoseConfig::default() };
     let outcome = diagnose(&real, Some((&set, "fitted on a clean recording".into())), &diagnose_config, &|_| {});
     let diagnosis_s = clock.elapsed().as_secs_f64();
-    let (verdict, named, named_channels, shrink, shrink_total) = match outcome {
+    let (verdict, named, named_channels, named_params, shrink, shrink_total) = match outcome {
         Ok((diagnosis, _)) => {
             let first = diagnosis.effects.first().filter(|e| e.shrink_measured);
             (
                 diagnosis.verdict.as_str().to_owned(),
                 diagnosis.effects.iter().map(|e| e.name.clone()).collect::<Vec<_>>(),
                 diagnosis.where_.channels.clone(),
+                diagnosis.effects.first().map(|e| e.params.clone()).unwrap_or_default(),
                 first.map(|e| e.shrink),
                 first.map(|e| e.shrink_total),
             )
         }
-        Err(error) => (format!("error: {error}"), Vec::new(), Vec::new(), None, None),
+        Err(error) => (format!("error: {error}"), Vec::new(), Vec::new(), Default::default(), None, None),
     };
     let mut record = CaseRecord {
         id,
@@ -236,6 +242,7 @@ fn run_case(config: &CampaignConfig, id: usize, class: Option<Effect>, models: &
         verdict,
         named,
         named_channels,
+        named_params,
         shrink,
         shrink_total,
         correct: false,

@@ -128,8 +128,16 @@ pub fn summarise(records: &[CaseRecord]) -> Summary {
     };
     let mut accuracy_by_ratio = BTreeMap::new();
     let mut confusion: BTreeMap<String, BTreeMap<String, usize>> = BTreeMap::new();
-    for class in classes().into_iter().map(class_name) {
-        let cases: Vec<&CaseRecord> = records.iter().filter(|r| r.class == class).collect();
+    // The tunnel's own classes in their order, then any other class a campaign holds (outside
+    // effects another program injects).
+    let mut class_names: Vec<String> = classes().into_iter().map(|class| class_name(class).to_owned()).collect();
+    let mut others: Vec<String> =
+        records.iter().map(|r| r.class.clone()).filter(|class| !class_names.contains(class)).collect();
+    others.sort();
+    others.dedup();
+    class_names.extend(others);
+    for class in &class_names {
+        let cases: Vec<&CaseRecord> = records.iter().filter(|r| r.class == *class).collect();
         if cases.is_empty() {
             continue;
         }
@@ -140,10 +148,10 @@ pub fn summarise(records: &[CaseRecord]) -> Summary {
                 (members.iter().filter(|r| r.correct).count(), members.len())
             })
             .collect();
-        accuracy_by_ratio.insert(class.to_owned(), bins);
+        accuracy_by_ratio.insert(class.clone(), bins);
         for record in cases {
             let said = record.named.first().cloned().unwrap_or_else(|| format!("({})", record.verdict));
-            *confusion.entry(class.to_owned()).or_default().entry(said).or_default() += 1;
+            *confusion.entry(class.clone()).or_default().entry(said).or_default() += 1;
         }
     }
     let mut times: Vec<f64> = records.iter().map(|r| r.diagnosis_s).collect();
@@ -312,6 +320,7 @@ mod tests {
             verdict: verdict.into(),
             named: named.iter().map(|n| (*n).to_owned()).collect(),
             named_channels: Vec::new(),
+            named_params: std::collections::BTreeMap::new(),
             shrink: None,
             shrink_total: None,
             correct: false,
@@ -372,7 +381,8 @@ mod tests {
     /// missed) and a named vocabulary effect are both wrong.
     #[test]
     fn an_effect_outside_the_vocabulary_is_right_only_as_unattributed() {
-        for class in ["q_fluctuation", "cubic_stiffness"] {
+        // The tunnel's own outside effects and names another program may use.
+        for class in ["q_fluctuation", "cubic_stiffness", "rig_tone", "encoder_backlash"] {
             assert!(is_correct(&case(class, Some(2.0), "unattributed", &[])), "{class}");
             assert!(!is_correct(&case(class, Some(2.0), "none", &[])), "{class}");
             assert!(!is_correct(&case(class, Some(2.0), "effect", &["roll_damping"])), "{class}");
