@@ -52,17 +52,24 @@ pub const RATIO_BINS: [(f64, f64); 4] = [(0.0, 1.0), (1.0, 2.0), (2.0, 4.01), (4
 pub struct Summary {
     /// Cases.
     pub cases: usize,
-    /// No effect injected: share of cases that named an effect (goal at most 5 %).
+    /// No effect injected: share of cases that named an effect (goal 0: the contract's "a
+    /// recording with no effect must not be given one").
     pub none_false_name_rate: Option<f64>,
     /// No effect injected: share of cases whose verdict is `none`, not `unattributed` (a gap
-    /// claimed where there is none is a false alarm even without a name; goal at least 90 %).
+    /// claimed where there is none is a false alarm even without a name; goal at least 95 %).
     pub none_verdict_rate: Option<f64>,
     /// Single vocabulary effect at ratio >= 1: share ranked first right (goal at least 95 %).
     pub vocabulary_top1_at_ratio_ge_1: Option<f64>,
     /// The same per effect (goal at least 90 % each).
     pub per_effect_top1_at_ratio_ge_1: BTreeMap<String, Option<f64>>,
-    /// Outside the vocabulary: share `unattributed` with no name (goal at least 80 %).
+    /// Outside the vocabulary: share `unattributed` with no name (goal at least 90 %).
     pub outside_unattributed_rate: Option<f64>,
+    /// Sensor effects at ratio >= 1 named first: share with exactly the injected channels (goal
+    /// at least 90 %).
+    pub sensor_exact_channels_rate: Option<f64>,
+    /// Right first effects at ratio >= 1 whose shrink holds by definition (a dead channel's 1),
+    /// counted apart from the measured shrinks.
+    pub shrinks_by_definition: usize,
     /// Median held-out shrink of the right first effect at ratio >= 1, where it is measured
     /// (a dead channel's 1 holds by definition and is left out; goal at least 0.7).
     pub median_shrink_at_ratio_ge_1: Option<f64>,
@@ -162,6 +169,21 @@ pub fn summarise(records: &[CaseRecord]) -> Summary {
         vocabulary_top1_at_ratio_ge_1: share(vocab_ge1.iter().filter(|r| r.correct).count(), vocab_ge1.len()),
         per_effect_top1_at_ratio_ge_1: per_effect,
         outside_unattributed_rate: share(outside.iter().filter(|r| r.correct).count(), outside.len()),
+        sensor_exact_channels_rate: {
+            let named_first: Vec<&&CaseRecord> = vocab_ge1
+                .iter()
+                .filter(|r| class_of(&r.class).is_some_and(firmware_sim::effect::Effect::is_sensor))
+                .filter(|r| r.named.first() == Some(&r.class))
+                .collect();
+            share(
+                named_first.iter().filter(|r| same_channels(&r.truth_channels, &r.named_channels)).count(),
+                named_first.len(),
+            )
+        },
+        shrinks_by_definition: vocab_ge1
+            .iter()
+            .filter(|r| r.correct && r.shrink.is_none() && r.ratio.is_none())
+            .count(),
         median_shrink_at_ratio_ge_1: median(&mut shrinks.clone()),
         median_shrink_total_at_ratio_ge_1: median(
             &mut vocab_ge1.iter().filter(|r| r.correct).filter_map(|r| r.shrink_total).collect::<Vec<_>>(),
@@ -180,11 +202,11 @@ pub fn report(records: &[CaseRecord], summary: &Summary, described: &str) -> cra
     use crate::report::{Report, Section, Table};
     let pct = |v: Option<f64>| v.map_or_else(|| "n/a".to_owned(), |v| format!("{:.1} %", 100.0 * v));
     let acceptance = Table {
-        caption: "Acceptance (issues 7 and 15)".into(),
+        caption: "Acceptance".into(),
         header: ["criterion", "goal", "measured"].map(String::from).to_vec(),
         rows: vec![
-            vec!["no effect: wrong effect named".into(), "<= 5 %".into(), pct(summary.none_false_name_rate)],
-            vec!["no effect: verdict none".into(), ">= 90 %".into(), pct(summary.none_verdict_rate)],
+            vec!["no effect: an effect named".into(), "0 %".into(), pct(summary.none_false_name_rate)],
+            vec!["no effect: verdict none".into(), ">= 95 %".into(), pct(summary.none_verdict_rate)],
             vec![
                 "single effect, ratio >= 1: right effect first".into(),
                 ">= 95 %".into(),
@@ -196,14 +218,24 @@ pub fn report(records: &[CaseRecord], summary: &Summary, described: &str) -> cra
                 pct(summary.per_effect_top1_at_ratio_ge_1.values().flatten().copied().reduce(f64::min)),
             ],
             vec![
+                "sensor effect named first: exactly its channels".into(),
+                ">= 90 %".into(),
+                pct(summary.sensor_exact_channels_rate),
+            ],
+            vec![
                 "outside the vocabulary: unattributed".into(),
-                ">= 80 %".into(),
+                ">= 90 %".into(),
                 pct(summary.outside_unattributed_rate),
             ],
             vec![
                 "median held-out shrink, ratio >= 1".into(),
                 ">= 0.7".into(),
                 summary.median_shrink_at_ratio_ge_1.map_or_else(|| "n/a".into(), |v| format!("{v:.2}")),
+            ],
+            vec![
+                "  right first effects whose shrink holds by definition (dead channels), apart".into(),
+                "".into(),
+                summary.shrinks_by_definition.to_string(),
             ],
             vec![
                 "  the same against the whole gap (sim's own floor included)".into(),
@@ -595,8 +627,8 @@ mod tests {
     }
 
     /// The report writes shares as percentages, a missing figure as "n/a" (never 0 %), the
-    /// worst single effect as the smallest per-effect share, and a dead channel's ratio as
-    /// "dead".
+    /// worst single effect as the smallest per-effect share, a dead channel's ratio as "dead"
+    /// and its shrink apart from the measured ones.
     #[test]
     fn the_report_writes_percentages_n_a_and_the_worst_effect() {
         let records = vec![
@@ -616,11 +648,13 @@ mod tests {
             let row = acceptance.rows.iter().find(|row| row[0] == criterion).expect("a row");
             &row[2]
         };
-        assert_eq!(measured("no effect: wrong effect named"), "25.0 %");
+        assert_eq!(measured("no effect: an effect named"), "25.0 %");
         assert_eq!(measured("no effect: verdict none"), "75.0 %");
         assert_eq!(measured("  worst single effect"), "66.7 %");
         assert_eq!(measured("outside the vocabulary: unattributed"), "n/a");
         assert_eq!(measured("median held-out shrink, ratio >= 1"), "n/a");
+        assert_eq!(measured("sensor effect named first: exactly its channels"), "100.0 %");
+        assert_eq!(measured("  right first effects whose shrink holds by definition (dead channels), apart"), "1");
         let cases = &report.sections[2].tables[0];
         let dead_row = cases.rows.iter().find(|row| row[1] == "pressure_fault").expect("the dead case");
         assert_eq!(dead_row[3], "dead");
