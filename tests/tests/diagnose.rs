@@ -96,6 +96,46 @@ fn inertial_tare_is_named_with_its_inertia_and_the_gap_shrinks() {
     assert!((top.shrink - (1.0 - top.heldout_rms_after / top.heldout_rms_before)).abs() < 1e-12);
 }
 
+/// The white noise of a balance record: first differences over sqrt(2) (von Neumann), on the
+/// first run, whose moment is smooth at the sample rate.
+fn balance_noise(dataset: &Dataset) -> f64 {
+    let cl = &dataset.runs[0].channels.cl;
+    let diffs: Vec<f64> = cl.windows(2).map(|w| w[1] - w[0]).collect();
+    (diffs.iter().map(|d| d * d).sum::<f64>() / diffs.len() as f64 / 2.0).sqrt()
+}
+
+/// RMS of `added` over the runs it touches, over the balance noise.
+fn added_ratio(added: &[Vec<f64>], noise: f64) -> f64 {
+    let touched: Vec<f64> = added.iter().filter(|a| a.iter().any(|v| *v != 0.0)).flatten().copied().collect();
+    (touched.iter().map(|v| v * v).sum::<f64>() / touched.len() as f64).sqrt() / noise
+}
+
+/// A balance zero that settles exponentially in every run (`A_k (1 - exp(-t / 4 s))`, its size
+/// and sign per run), one of the contract's forms of `bias_drift`, written here apart from the
+/// family: named `bias_drift`.
+#[test]
+fn exponentially_settling_zero_is_named_bias_drift() {
+    let mut dataset = record(Effects::default());
+    let noise = balance_noise(&dataset);
+    let added: Vec<Vec<f64>> = dataset
+        .runs
+        .iter()
+        .enumerate()
+        .map(|(k, run)| {
+            let start = run.channels.t_s[0];
+            let size = 3.0 * noise * if k % 2 == 0 { 1.0 } else { -1.4 };
+            run.channels.t_s.iter().map(|t| size * (1.0 - (-(t - start) / 4.0).exp())).collect()
+        })
+        .collect();
+    for (run, drift) in dataset.runs.iter_mut().zip(&added) {
+        run.channels.cl.iter_mut().zip(drift).for_each(|(cl, d)| *cl += d);
+    }
+    assert!(added_ratio(&added, noise) > 1.5);
+    let diagnosis = run(&dataset);
+    assert_eq!(diagnosis.verdict.as_str(), "effect", "{:?}", diagnosis.effects);
+    assert_eq!(diagnosis.effects[0].name, "bias_drift", "{:?}", diagnosis.effects);
+}
+
 /// A dead pressure channel: `pressure_fault` in the sensor block, naming the channel.
 #[test]
 fn dead_pressure_channel_is_named_with_its_channel() {
