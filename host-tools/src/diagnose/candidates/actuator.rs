@@ -6,7 +6,10 @@
 
 use firmware_sim::effect::Effect;
 
-use super::{BalanceCandidate, Context, Jets, Params, Shape, difference, first_order_lag, gains, log_grid, resonator};
+use super::{
+    BalanceCandidate, Context, Jets, Params, Shape, around, difference, first_order_lag, gains, grid_ratio, log_grid,
+    resonator,
+};
 use crate::diagnose::streams::RunStreams;
 
 /// `actuator_delay`: the plant driven by `Cmu(t - d)` of one jet or both, d from half a sample to
@@ -38,17 +41,6 @@ const VALVE_ZETA_FINE: [f64; 5] = [0.2, 0.3, 0.45, 0.7, 1.0];
 
 /// Shares of the delay a smoothing after it may take ("well under the delay").
 const SMOOTHING_SHARES: [f64; 2] = [0.1, 0.25];
-
-/// `n` points spaced logarithmically between the neighbours of `value` on a logarithmic grid
-/// whose ratio between points is `step_ratio` (a refinement of one coarse cell either side).
-fn around(value: f64, step_ratio: f64, n: usize, low: f64, high: f64) -> Vec<f64> {
-    log_grid((value / step_ratio).max(low), (value * step_ratio).min(high), n)
-}
-
-/// The ratio between neighbours of `log_grid(low, high, n)`.
-fn grid_ratio(low: f64, high: f64, n: usize) -> f64 {
-    (high / low).powf(1.0 / (n.max(2) - 1) as f64)
-}
 
 impl ActuatorDelay {
     const COARSE: usize = 24;

@@ -136,8 +136,7 @@ impl BalanceCandidate for VortexLag {
     fn refine(&self, best: &Shape, _sample_hz: f64, context: &Context<'_>) -> Vec<Shape> {
         let Shape::SlowState { tau_s, drive, law, at_alpha_deg } = *best else { return Vec::new() };
         let (low, high) = Self::tau_range(context);
-        let ratio = (high / low).powf(1.0 / (Self::COARSE - 1) as f64);
-        log_grid((tau_s / ratio).max(low), (tau_s * ratio).min(high), 7)
+        super::around(tau_s, super::grid_ratio(low, high, Self::COARSE), 7, low, high)
             .into_iter()
             .map(|tau_s| Shape::SlowState { tau_s, drive, law, at_alpha_deg })
             .collect()

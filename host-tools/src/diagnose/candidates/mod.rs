@@ -634,6 +634,17 @@ pub fn log_grid(low: f64, high: f64, n: usize) -> Vec<f64> {
     (0..n).map(|idx| low * (ratio * idx as f64).exp()).collect()
 }
 
+/// `n` points spaced logarithmically between the neighbours of `value` on a logarithmic grid
+/// whose ratio between points is `step_ratio` (a refinement of one coarse cell either side).
+pub(crate) fn around(value: f64, step_ratio: f64, n: usize, low: f64, high: f64) -> Vec<f64> {
+    log_grid((value / step_ratio).max(low), (value * step_ratio).min(high), n)
+}
+
+/// The ratio between neighbours of `log_grid(low, high, n)`.
+pub(crate) fn grid_ratio(low: f64, high: f64, n: usize) -> f64 {
+    (high / low).powf(1.0 / (n.max(2) - 1) as f64)
+}
+
 /// What the regressors need besides the run itself.
 #[derive(Debug, Clone)]
 pub struct Context<'a> {

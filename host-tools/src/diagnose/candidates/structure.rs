@@ -94,13 +94,13 @@ impl BalanceCandidate for BalanceResonance {
     fn refine(&self, best: &Shape, sample_hz: f64, context: &Context<'_>) -> Vec<Shape> {
         let Shape::Mode { freq_hz, zeta, drive_corner_hz } = *best else { return Vec::new() };
         let (low, high) = Self::band_hz(sample_hz, context);
-        let ratio = (high / low).powf(1.0 / (RESONANCE_COARSE - 1) as f64);
+        let ratio = super::grid_ratio(low, high, RESONANCE_COARSE);
         let mut shapes: Vec<Shape> = MODE_DRIVE_CORNERS_HZ
             .iter()
             .filter(|corner| **corner != drive_corner_hz)
             .map(|&drive_corner_hz| Shape::Mode { freq_hz, zeta, drive_corner_hz })
             .collect();
-        for freq_hz in log_grid((freq_hz / ratio).max(low), (freq_hz * ratio).min(high), RESONANCE_FINE) {
+        for freq_hz in super::around(freq_hz, ratio, RESONANCE_FINE, low, high) {
             for zeta in RESONANCE_DAMPING {
                 shapes.push(Shape::Mode { freq_hz, zeta, drive_corner_hz });
             }
