@@ -165,7 +165,11 @@ pub(super) fn balance_effect(
     }
 }
 
-pub(super) fn sensor_effect(finding: &SensorFinding) -> EffectResult {
+/// The result of a named sensor finding. `excess_to_noise` is what the decision named it on:
+/// what it removes on the selection part beyond its floor, in noise variances
+/// ([`super::stages::SensorAttribution::excess_of`]); its square root is the effect-to-noise
+/// ratio reported, so that the number a reader sees is the one the threshold was applied to.
+pub(super) fn sensor_effect(finding: &SensorFinding, excess_to_noise: f64) -> EffectResult {
     let mut params = BTreeMap::new();
     for (key, value) in &finding.params {
         let json = match value {
@@ -178,18 +182,22 @@ pub(super) fn sensor_effect(finding: &SensorFinding) -> EffectResult {
         params.insert("channel".into(), serde_json::json!(channel));
     }
     params.insert("channels".into(), serde_json::json!(finding.channels));
-    let dead = finding.heldout.n == 0;
+    // A dead channel carries no reading: its shrink of 1 holds by definition. Any other finding
+    // without held-out samples has no measured shrink either, and none is claimed.
+    let dead = finding.explained.is_infinite();
+    let measured = !dead && finding.heldout.n > 0;
+    let by_definition = if dead { 1.0 } else { 0.0 };
     EffectResult {
         name: finding.effect.name().into(),
         block: "sensor".into(),
         params,
         heldout_rms_before: finding.heldout.gap_before(),
         heldout_rms_after: finding.heldout.gap_after(),
-        shrink: if dead { 1.0 } else { finding.heldout.shrink() },
-        shrink_total: if dead { 1.0 } else { finding.heldout.shrink() },
-        shrink_measured: !dead,
+        shrink: if measured { finding.heldout.shrink() } else { by_definition },
+        shrink_total: if measured { finding.heldout.shrink() } else { by_definition },
+        shrink_measured: measured,
         delta_bic: finite_or_null(finding.delta_bic),
-        effect_to_noise: finite_or_null((finding.explained / finding.noise_var.max(f64::MIN_POSITIVE)).sqrt()),
+        effect_to_noise: finite_or_null(excess_to_noise.max(0.0).sqrt()),
         evidence: finding.evidence.clone(),
     }
 }

@@ -280,44 +280,118 @@ fn best_interval_over(
     (evidence >= MIN_RUN_DELTA_BIC).then(|| samples[a]..samples[b - 1] + 1)
 }
 
+/// What the training part fixed of a fault, for judging it on the other parts: per run, the
+/// interval found there and the fault's level (a bias's constant, a stuck channel's frozen
+/// reading), and the level for a run whose training part had none.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Trained {
+    /// Per run, the interval found on the training part (it runs on into the held-out part
+    /// when it reached the training part's end).
+    pub per_run: Vec<Option<std::ops::Range<usize>>>,
+    /// Per run, the level fitted on the training part: the bias added to the reading, or the
+    /// reading a stuck channel froze at.
+    pub levels: Vec<Option<f64>>,
+}
+
+impl Trained {
+    /// From the scan on the training part and the fitted coefficients of its columns
+    /// ([`Onsets::columns`]): a bias's level per run; for a stuck channel, the mean reading over
+    /// the run's training interval.
+    #[must_use]
+    pub fn new(runs: &[RunStreams], tap: usize, shape: Shape, onsets: &Onsets, beta: &[f64]) -> Self {
+        let levels = runs
+            .iter()
+            .zip(&onsets.per_run)
+            .enumerate()
+            .map(|(run_idx, (run, interval))| {
+                let interval = interval.as_ref()?;
+                match shape {
+                    Shape::Bias => beta.get(run_idx).copied(),
+                    Shape::Stuck => {
+                        let reading =
+                            mean_of(run.fit_samples().filter(|i| interval.contains(i)).map(|i| run.cp[tap][i]));
+                        reading.is_finite().then_some(reading)
+                    }
+                }
+            })
+            .collect();
+        Self { per_run: onsets.per_run.clone(), levels }
+    }
+
+    /// The level for a run without its own: the median of the runs' levels.
+    fn typical(&self) -> Option<f64> {
+        let mut levels: Vec<f64> = self.levels.iter().flatten().copied().collect();
+        levels.sort_by(f64::total_cmp);
+        levels.get(levels.len() / 2).copied()
+    }
+}
+
+/// Samples of a stuck reading's onset whose mean is its frozen value, s.
+const FROZEN_ONSET_S: f64 = 0.01;
+
 /// The gap of channel `tap` over a part of every run (the selection blocks or the held-out
-/// part) before and after a fault of `shape` found in that part itself.
+/// part) before and after the fault the training part fixed (`trained`), with nothing fitted
+/// on the part.
 ///
-/// Why found there and not carried from the training part: a fault that comes and goes (a
-/// loose connector, a tube that clears) is not predictable in time; what the training part
-/// fixes is the channel and the fault's shape (and a stuck reading's slope on the expectation,
-/// `stuck_slope`), and what a part can check is that the same detector, with the same evidence
-/// threshold, finds the fault there too and that removing it shrinks the gap. The level over
-/// each interval found is the one quantity estimated in the part (a fault's level, like a
-/// drift's, is a state, not a parameter): one number per interval, paid for by the detector's
-/// threshold. A healthy channel gives no interval and no shrink.
+/// Where: a fault that comes and goes (a loose connector, a tube that clears) is not
+/// predictable in time, so the fault acts where the training part's interval reaches into the
+/// part and wherever the same detector ([`best_interval_over`], its thresholds and the
+/// innovation's autocorrelation time `tau` fixed on the training part) finds it in the part.
+/// Running a fixed detector fits nothing. How much: nothing is estimated on the part. A bias
+/// keeps its training level (the run's own, or the median over the runs for a run whose
+/// training part had none); a stuck channel reads its frozen value, the training one when the
+/// interval continues the run's training interval, else the reading at the onset the detector
+/// names (the mean of its first [`FROZEN_ONSET_S`]), the value it froze at. The innovation is
+/// the reading less the filter's expectation, so a stuck channel's predicted innovation is the
+/// frozen value less the expectation. A healthy channel gives no interval and no shrink; a
+/// level that differs in the part is not re-fitted, so the part's gap shows it.
 #[must_use]
 pub fn part_gap(
     runs: &[RunStreams],
     tap: usize,
     shape: Shape,
     tau: f64,
-    stuck_slope: f64,
+    trained: &Trained,
     heldout: bool,
 ) -> regression::HeldoutGap {
     let mut gap = regression::GapSums::default();
-    for run in runs {
+    let typical = trained.typical();
+    for (run_idx, run) in runs.iter().enumerate() {
         let samples: Vec<usize> = if heldout { run.heldout.clone().collect() } else { run.select.samples().collect() };
         let usable = usable_samples(run, tap, &samples);
         let nu = &run.innovation[tap];
         let expected = expectation(run, tap);
+        let from_training = trained.per_run.get(run_idx).cloned().flatten();
         let found = best_interval_over(run, tap, shape, tau, &usable);
-        let inside = |i: &usize| found.as_ref().is_some_and(|range| range.contains(i));
-        // The fault's column over the interval: a constant (bias), or a constant less the
-        // expectation at the training part's slope (stuck); its level fitted here.
-        let column = |i: usize| match shape {
-            Shape::Bias => 0.0,
-            Shape::Stuck => stuck_slope * expected[i],
+        let in_training = |i: &usize| from_training.as_ref().is_some_and(|range| range.contains(i));
+        let in_found = |i: &usize| found.as_ref().is_some_and(|range| range.contains(i));
+        let own_level = trained.levels.get(run_idx).copied().flatten();
+        let level = match shape {
+            Shape::Bias => own_level.or(typical),
+            Shape::Stuck => {
+                let continues = found.as_ref().is_none_or(|range| {
+                    from_training.as_ref().is_some_and(|t| t.contains(&range.start) || t.end == range.start)
+                });
+                if continues {
+                    own_level
+                } else {
+                    let onset = found.as_ref().map_or(0, |range| range.start);
+                    let width = ((FROZEN_ONSET_S * run.sample_hz).round() as usize).max(1);
+                    let frozen = mean_of(usable.iter().filter(|&&i| i >= onset).take(width).map(|&i| run.cp[tap][i]));
+                    frozen.is_finite().then_some(frozen)
+                }
+            }
         };
-        let level = mean_of(usable.iter().filter(|i| inside(i)).map(|&i| nu[i] - column(i)));
         gap.next_run();
         for &i in &usable {
-            gap.add(i, nu[i], if inside(&i) { level + column(i) } else { 0.0 });
+            let predicted = match (level, in_training(&i) || in_found(&i)) {
+                (Some(level), true) => match shape {
+                    Shape::Bias => level,
+                    Shape::Stuck => level - expected[i],
+                },
+                _ => 0.0,
+            };
+            gap.add(i, nu[i], predicted);
         }
     }
     gap.finish()
@@ -431,26 +505,56 @@ mod tests {
         assert_eq!(interval_s(&run, Shape::Bias), None);
     }
 
-    /// A fault that comes and goes is found again in the part it is judged on: a channel
-    /// stuck for one second inside the held-out part only (the training part never saw it)
-    /// shrinks the held-out gap by most of it; the same detector on a healthy channel finds
-    /// nothing there and changes nothing.
+    /// Nothing fitted: no interval in the training part, the level the training part would
+    /// have fixed.
+    fn untrained(level: f64) -> Trained {
+        Trained { per_run: vec![None], levels: vec![Some(level)] }
+    }
+
+    /// A fault that comes and goes is found again in the part it is judged on by the fixed
+    /// detector: a channel stuck for one second inside the held-out part only (the training
+    /// part never saw it) shrinks the held-out gap by most of it, read at the value it froze
+    /// at; the same detector on a healthy channel finds nothing there and changes nothing.
     #[test]
     fn a_fault_inside_the_held_out_part_is_found_there_and_a_healthy_channel_is_left_alone() {
         let runs = [run_with(9, |t_s, e| if (17.0..18.0).contains(&t_s) { -0.4 } else { e })];
         assert_eq!(scan(&runs, 0, Shape::Stuck, 1.0).per_run[0], None, "not in the training part");
-        let gap = part_gap(&runs, 0, Shape::Stuck, 1.0, -1.0, true);
+        let gap = part_gap(&runs, 0, Shape::Stuck, 1.0, &Trained { per_run: vec![None], levels: vec![None] }, true);
         assert!(gap.shrink() > 0.8, "held-out shrink {}", gap.shrink());
-        let bias =
-            part_gap(&[run_with(10, |t_s, e| if t_s >= 18.5 { e + 0.05 } else { e })], 0, Shape::Bias, 1.0, 0.0, true);
+        let bias = part_gap(
+            &[run_with(10, |t_s, e| if t_s >= 18.5 { e + 0.05 } else { e })],
+            0,
+            Shape::Bias,
+            1.0,
+            &untrained(0.05),
+            true,
+        );
         assert!(bias.shrink() > 0.8, "held-out bias shrink {}", bias.shrink());
         let healthy = [run_with(11, |_, e| e)];
         for shape in [Shape::Stuck, Shape::Bias] {
             for heldout in [true, false] {
-                let gap = part_gap(&healthy, 0, shape, 1.0, -1.0, heldout);
+                let gap = part_gap(&healthy, 0, shape, 1.0, &untrained(0.05), heldout);
                 assert!(gap.n > 0 && gap.mse_after == gap.mse_before, "{shape:?} heldout={heldout}");
             }
         }
+    }
+
+    /// Nothing is re-fitted on the held-out part: a bias whose level there differs from the
+    /// training level is predicted at the training level, so the held-out gap keeps the
+    /// difference (a re-fit would have removed it all).
+    #[test]
+    fn a_bias_keeps_its_training_level_on_the_held_out_part() {
+        let runs = [run_with(13, |t_s, e| if t_s < 16.0 { e + 0.03 } else { e + 0.06 })];
+        let onsets = scan(&runs, 0, Shape::Bias, 1.0);
+        let segments = segments_of(&runs, 0);
+        let fit = regression::fit_through_origin(&segments, &onsets.columns).expect("a fit");
+        let trained = Trained::new(&runs, 0, Shape::Bias, &onsets, &fit.beta);
+        let level = trained.levels[0].expect("a training level");
+        assert!((level - 0.03).abs() < 0.003, "training level {level}");
+        let gap = part_gap(&runs, 0, Shape::Bias, 1.0, &trained, true);
+        // Before: 0.06 of bias; after: 0.03 left, so the gap halves and no more.
+        assert!((gap.shrink() - 0.5).abs() < 0.1, "held-out shrink {}", gap.shrink());
+        assert!(gap.gap_after() > 0.02, "the held-out difference stays: {}", gap.gap_after());
     }
 
     /// On the selection blocks (interleaved with the training part) a fault inside one block is
@@ -461,7 +565,7 @@ mod tests {
         let block: Vec<usize> = probe.select.samples().take(probe.select.block).collect();
         let (from_s, to_s) = (block[0] as f64 / HZ + 0.1, *block.last().unwrap() as f64 / HZ - 0.1);
         let runs = [run_with(12, |t_s, e| if (from_s..to_s).contains(&t_s) { e + 0.08 } else { e })];
-        let gap = part_gap(&runs, 0, Shape::Bias, 1.0, 0.0, false);
+        let gap = part_gap(&runs, 0, Shape::Bias, 1.0, &untrained(0.08), false);
         assert!(gap.shrink() > 0.8, "selection shrink {}", gap.shrink());
     }
 

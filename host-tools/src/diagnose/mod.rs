@@ -162,7 +162,7 @@ pub fn diagnose(
         probe_to_noise: probe.base.clone(),
         gap_to_noise_by_kind: gaps.by_kind.clone(),
         pressure_alignment_s: pressure_lag::Alignment::new(&streams.runs, |run| run.fit_samples().collect())
-            .map(|alignment| alignment.shared()),
+            .and_then(|alignment| alignment.reference()),
     };
 
     let mut effects = Vec::new();
@@ -171,7 +171,7 @@ pub fn diagnose(
     let runs = &streams.runs;
     match &decision {
         Decision::Sensor(finding) => {
-            effects.push(sensor_effect(finding));
+            effects.push(sensor_effect(finding, SensorAttribution::excess_of(finding, &floor)));
             where_.block = Some("sensor".into());
             where_.channel = finding.channel.clone();
             where_.channels = finding.channels.clone();

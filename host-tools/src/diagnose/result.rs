@@ -492,7 +492,7 @@ mod tests {
     /// null; the channel is in the parameters. A measured finding keeps its held-out shrink.
     #[test]
     fn a_dead_channels_effect_is_flagged_unmeasured() {
-        let dead = sensor_effect(&dead_finding());
+        let dead = sensor_effect(&dead_finding(), f64::INFINITY);
         assert_eq!(dead.name, "pressure_fault");
         assert_eq!(dead.block, "sensor");
         assert_eq!(dead.shrink, 1.0);
@@ -502,12 +502,23 @@ mod tests {
         assert_eq!(dead.params["channel"], serde_json::json!("cp07"));
         assert_eq!(dead.params["channels"], serde_json::json!(["cp07"]));
         assert_eq!(serde_json::to_value(&dead).unwrap()["shrink_measured"], serde_json::json!(false));
-        let measured = sensor_effect(&finding());
+        let measured = sensor_effect(&finding(), 4.0);
         assert!(measured.shrink_measured);
         assert!((measured.shrink - 0.5).abs() < 1e-12);
         assert!((measured.heldout_rms_before - 2.0).abs() < 1e-12 && (measured.heldout_rms_after - 1.0).abs() < 1e-12);
-        // sqrt(explained / noise) = sqrt(2 / 0.5) = 2.
+        // The ratio reported is the one the decision named it on: sqrt(4) = 2.
         assert_close(measured.effect_to_noise, 2.0);
+    }
+
+    /// A finding that is not a dead channel but has no held-out samples claims no shrink: only
+    /// a dead channel's shrink of 1 holds by definition.
+    #[test]
+    fn a_live_finding_without_held_out_samples_claims_no_shrink() {
+        let mut live = finding();
+        live.heldout = HeldoutGap::EMPTY;
+        let effect = sensor_effect(&live, 1.0);
+        assert!(!effect.shrink_measured);
+        assert_eq!(effect.shrink, 0.0);
     }
 
     /// A profiled balance candidate's summary, by hand: explained (10 - 6) / 100 samples =

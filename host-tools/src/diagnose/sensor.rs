@@ -459,9 +459,10 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
         let (repeat_s, repeat_start_s) = longest_constant_run(runs, tap);
         let start_s = onset_s(&stuck);
         let k = fit.beta.len() + runs_with(&stuck);
-        // The shared slope on the expectation (checked above); the parts find their own intervals.
-        let slope = fit.beta.first().copied().unwrap_or(0.0);
-        let part_gap = |heldout: bool| faults::part_gap(runs, tap, faults::Shape::Stuck, tau, slope, heldout);
+        // The training part fixes the intervals and the frozen readings; the parts are judged
+        // with them ([`faults::part_gap`]).
+        let trained = faults::Trained::new(runs, tap, faults::Shape::Stuck, &stuck, &fit.beta);
+        let part_gap = |heldout: bool| faults::part_gap(runs, tap, faults::Shape::Stuck, tau, &trained, heldout);
         shapes.push(SensorFinding {
             effect: Effect::PressureFault,
             params: vec![
@@ -522,6 +523,7 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
         && let Some(fit) = regression::fit_through_origin(&segments, &bias.columns)
     {
         let start_s = onset_s(&bias);
+        let trained = faults::Trained::new(runs, tap, faults::Shape::Bias, &bias, &fit.beta);
         let largest = fit.beta.iter().copied().fold(0.0, |acc: f64, b| if b.abs() > acc.abs() { b } else { acc });
         shapes.push(SensorFinding {
             effect: Effect::PressureFault,
@@ -537,8 +539,8 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
             explained: fit.explained_per_sample(),
             noise_var,
             delta_bic: delta_bic(&fit, tau, 2 * runs_with(&bias)),
-            heldout: faults::part_gap(runs, tap, faults::Shape::Bias, tau, 0.0, true),
-            selection: faults::part_gap(runs, tap, faults::Shape::Bias, tau, 0.0, false),
+            heldout: faults::part_gap(runs, tap, faults::Shape::Bias, tau, &trained, true),
+            selection: faults::part_gap(runs, tap, faults::Shape::Bias, tau, &trained, false),
             evidence: format!(
                 "{name}'s innovation mean steps by up to {largest:.4} from t = {start_s:.2} s in {} run(s)",
                 runs_with(&bias)
