@@ -106,9 +106,10 @@ from tunnel import Rig
 
 CLASSES = ["none", "actuator_delay", "actuator_lag", "inertial_tare", "gravity_tare", "roll_damping", "vortex_lag",
            "coupling", "pressure_lag", "pressure_fault", "balance_resonance", "bias_drift", "q_fluctuation",
-           "cubic_stiffness"]
+           "cubic_stiffness", "rig_tone", "encoder", "balance_saturation"]
 KINDS = (("roll", "r"), ("actuation", "a"), ("roll+actuation", "ra"))
-FORMATS = {"t_s": "%.4f", "phi_deg": "%.4f", "mx_nm": "%.8g", "temperature_c": "%.1f", "cmu_port": "%.6g"}
+FORMATS = {"t_s": "%.4f", "phi_deg": "%.4f", "mx_nm": "%.8g", "temperature_c": "%.1f", "cmu_port": "%.6g",
+           "cmu_stbd": "%.6g"}
 FORMATS.update({c: "%.6g" for c in effects.CHANNELS})
 
 
@@ -140,9 +141,17 @@ class Case:
                 fl = tunnel.flow(rig, alpha, run["phi"], run["p"])
                 run["fl"] = fl
                 run["cmu_eff"] = tunnel.plant_cmu(rig, run["cmu"])
-                run["jet"], run["coup"] = tunnel.actuation(rig, fl, run["cmu_eff"])
+                if rig.stbd_jet:
+                    # The starboard jet's own levels, from a stream of its own (the port jet's
+                    # draws and the noise stay those of a port-only rig).
+                    rs = np.random.default_rng([seed, len(self.runs), 7])
+                    run["cmu_s"] = tunnel.blowing(rs, n, dt, rig.cmu_max, start, rig.blow_hold, rig.blow_ramp_s,
+                                                  rig.blow_zero_prob) if kind != "roll" else np.zeros(n)
+                    run["cmu_eff_s"] = tunnel.plant_cmu(rig, run["cmu_s"])
+                    run["cmu_noise_s"] = rs.normal(0, rig.cmu_noise, n)
+                run["jet"], run["coup"] = tunnel.actuation(rig, fl, run["cmu_eff"], run.get("cmu_eff_s"))
                 run["cl"] = fl["cl_roll"] + run["jet"] + run["coup"]
-                run["cp"] = tunnel.taps(rig, fl, run["cmu_eff"])
+                run["cp"] = tunnel.taps(rig, fl, run["cmu_eff"], run.get("cmu_eff_s"))
                 # Noise: AR(1) balance noise started stationary, white Cp and Cmu noise.
                 white = rng.normal(0, rig.cl_white, n)
                 e0 = rng.normal(0, rig.cl_noise_rms)
@@ -152,69 +161,113 @@ class Case:
                 run["nan_idx"] = rng.integers(0, n, rig.nan_count)
                 run["t0"] = round(rig.t0_s + float(rng.uniform(0, 30)), 3)
                 run["order_key"] = rng.random(17)
+                if rig.stbd_jet:
+                    run["order_key"] = np.append(run["order_key"], rs.random())
                 self.runs.append(run)
 
     def write(self, out, contribs=None):
         rig = self.rig
         os.makedirs(os.path.join(out, "runs"))
         for i, run in enumerate(self.runs):
-            dcl, dcp = contribs[i] if contribs else (None, None)
+            dcl, dcp, dphi = (tuple(contribs[i]) + (None,))[:3] if contribs else (None, None, None)
+            if dphi is not None:
+                dcl = None  # the moment gap of a misread angle: the recording keeps the true moment
             cl = run["cl"] + (dcl if dcl is not None else 0.0) + run["cl_noise"]
             cp = run["cp"] + (dcp if dcp is not None else 0.0) + run["cp_noise"]
             cp[rig.nan_channel, run["nan_idx"]] = np.nan
             n = run["n"]
             columns = {"mx_nm": cl * rig.qsb, "temperature_c": np.full(n, rig.temperature_c),
-                       "phi_deg": tunnel.quantise_phi(rig, run["phi"]) + 0.0, "t_s": run["t0"] + run["t"]}
+                       "phi_deg": tunnel.quantise_phi(rig, run["phi"] + (dphi if dphi is not None else 0.0)) + 0.0,
+                       "t_s": run["t0"] + run["t"]}
             for j, c in enumerate(effects.CHANNELS):
                 columns[c] = cp[j]
             columns["cmu_port"] = tunnel.measured_cmu(run["cmu"], run["cmu_noise"])
+            if rig.stbd_jet:
+                columns["cmu_stbd"] = tunnel.measured_cmu(run["cmu_s"], run["cmu_noise_s"])
             names = list(columns)
-            order = [names[k] for k in np.argsort(run["order_key"])]
+            order = [names[k] for k in np.argsort(run["order_key"][: len(names)])]
             tunnel.write_run_csv(os.path.join(out, run["file"]), columns, order, FORMATS)
         with open(os.path.join(out, "manifest.toml"), "w") as f:
             f.write(tunnel.manifest_text(rig, [(r["file"], r["kind"], r["alpha"]) for r in self.runs]))
 
 
 def clean_number(x):
+    """A truth value: numbers to 6 significant digits (non-finite refused), strings and
+    integers kept, dicts cleaned value by value."""
+    if isinstance(x, dict):
+        return {k: clean_number(v) for k, v in x.items()}
+    if isinstance(x, str):
+        return x
+    if isinstance(x, (int, np.integer)) and not isinstance(x, bool):
+        return int(x)
     x = float(x)
     if not math.isfinite(x):
         raise ValueError(f"non-finite value {x}")
     return float(f"{x:.6g}")
 
 
+def form_table():
+    """{class: [form ids]} of every class with an effect."""
+    return {c: [f"{c}/{f}" for f in effects.EFFECTS[c].forms] for c in CLASSES if c != "none"}
+
+
+def form_schedule(seed, classes):
+    """The form of each case: per class, its forms in a shuffled order (the campaign seed's),
+    the class's k-th case taking the (k mod n)-th, so K >= n cases of a class draw every form."""
+    shuffled = {}
+    for j, c in enumerate(CLASSES):
+        if c != "none":
+            forms = list(effects.EFFECTS[c].forms)
+            np.random.default_rng([seed, 5, j]).shuffle(forms)
+            shuffled[c] = forms
+    seen = {}
+    out = []
+    for c in classes:
+        k = seen.get(c, 0)
+        seen[c] = k + 1
+        out.append(shuffled[c][k % len(shuffled[c])] if c != "none" else "none")
+    return out
+
+
 def make_case(job):
     """Generate and write one case; returns its truth."""
-    rig, alphas, duration, out, case_id, cls, seed = job
+    rig, alphas, duration, out, case_id, cls, seed, form, own_outside = job
     t_start = time.time()
     case = Case(rig, alphas, duration, seed)
     truth = {"id": case_id, "class": cls, "form": "none", "params": {}, "channels": [], "channel_ratios": {},
-             "ratio": None, "stream": None, "alpha_deg": [], "seed": seed}
+             "ratio": None, "stream": None, "alpha_deg": [], "seed": seed, "effect": cls, "recover": {}}
     contribs = None
     if cls != "none":
         eff = effects.EFFECTS[cls]
         rng = np.random.default_rng([seed, 1000])
         target = effects.lu(rng, 0.5, 4.0)
         for _ in range(20):
-            st = eff.setup(rng, case)
+            st = eff.setup(rng, case, form)
             try:
                 v = effects.calibrate(eff, case, st, target)
                 break
             except ValueError:
                 continue
         else:
-            raise RuntimeError(f"case {case_id}: no usable form of {cls}")
+            raise RuntimeError(f"case {case_id}: no usable draw of {cls}/{form}")
         eff.finish(st, v, case)
         contribs = eff.contrib(case, st, v, True)
         chans = st.get("channels") if eff.stream == "cp" else None
         ratio, acting, chan_ratios = effects.stream_ratio(case, contribs, eff.stream, chans)
+        recover = dict(st.get("recover", {}))
+        if chans and len(chans) == 1:
+            recover.setdefault("channel", effects.CHANNELS[chans[0]])
         truth.update({
-            "form": st["form"],
+            "class": cls if own_outside else effects.SCORED_OUTSIDE.get(cls, cls),
+            "form": f"{cls}/{st['form']}",
             "params": {k: clean_number(x) for k, x in st["params"].items()},
             "channels": [effects.CHANNELS[c] for c in chans] if chans else [],
-            "channel_ratios": {k: clean_number(x) for k, x in chan_ratios.items()},
-            "ratio": clean_number(ratio),
+            "channel_ratios": {k: (clean_number(x) if math.isfinite(x) else None) for k, x in chan_ratios.items()},
+            "ratio": clean_number(ratio) if math.isfinite(ratio) else None,
             "stream": eff.stream,
             "alpha_deg": sorted({float(case.runs[i]["alpha"]) for i in acting}),
+            "target_ratio": clean_number(target) if st["calib"][0] != "none" else None,
+            "recover": clean_number(recover),
         })
     case.write(os.path.join(out, "cases", f"case-{case_id:03d}"), contribs)
     return truth, time.time() - t_start
@@ -222,13 +275,24 @@ def make_case(job):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", required=True)
-    parser.add_argument("--seed", type=int, required=True)
+    parser.add_argument("--out")
+    parser.add_argument("--seed", type=int)
     parser.add_argument("--cases-per-class", type=int, default=10)
     parser.add_argument("--duration-s", type=float, default=20.0)
     parser.add_argument("--alphas", default="auto")
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--list-forms", action="store_true", help="print the classes and their form ids, and stop")
+    parser.add_argument("--own-outside-classes", action="store_true",
+                        help="write the outside effects' own names as the truth's class (rig_tone, encoder, "
+                             "balance_saturation), which the current scorer refuses as unknown classes")
     args = parser.parse_args()
+    if args.list_forms:
+        for c, forms in form_table().items():
+            kind = "outside" if c in effects.SCORED_OUTSIDE else "vocabulary"
+            print(f"{c} ({kind}, {len(forms)} forms): {' '.join(forms)}")
+        return
+    if args.out is None or args.seed is None:
+        parser.error("--out and --seed are required")
     if os.path.exists(args.out) and os.listdir(args.out):
         sys.exit(f"campaign.py: {args.out} exists and is not empty")
     seed = args.seed
@@ -246,7 +310,9 @@ def main():
     t0 = time.time()
     Case(rig, alphas, args.duration_s, seed_of(seed, 4)).write(os.path.join(args.out, "clean"))
     print(f"campaign.py: clean recording written ({time.time() - t0:.1f} s)", file=sys.stderr)
-    jobs = [(rig, alphas, args.duration_s, args.out, i, cls, seed_of(seed, 3, i)) for i, cls in enumerate(classes)]
+    forms = form_schedule(seed, classes)
+    jobs = [(rig, alphas, args.duration_s, args.out, i, cls, seed_of(seed, 3, i), forms[i], args.own_outside_classes)
+            for i, cls in enumerate(classes)]
     entries = {}
     done = 0
     with mp.get_context("fork").Pool(max(1, args.workers)) as pool:
