@@ -498,7 +498,7 @@ class BalanceResonance:
 class BiasDrift:
     """A slow zero drift of the balance from each run's start, sized D: a ramp D s_r t / T
     (s_r = 0.5-1.5 per run) | an exponential settling D s_r (1 - exp(-t / T_s)), T_s 2-20 s |
-    a random walk low-passed below 0.1 Hz (first order, corner 0.02-0.1 Hz) | 1-4 steps of
+    a random walk low-passed below 0.1 Hz (second-order Butterworth, corner 0.02-0.1 Hz) | 1-4 steps of
     random sizes at random times."""
 
     name, stream = "bias_drift", "cl"
@@ -521,7 +521,8 @@ class BiasDrift:
                 shp = s * rng.uniform(0.5, 1.5) * (1 - np.exp(-t / st["ts"]))
             elif form == "random_walk":
                 walk = np.cumsum(rng.normal(0, math.sqrt(dt), run["n"]))
-                shp = lti(walk, [1.0], [1 / (2 * np.pi * st["fc"]), 1.0], dt, "zoh", settled=False)
+                wc = 2 * np.pi * st["fc"]
+                shp = lti(walk, [1.0], [1 / wc**2, math.sqrt(2) / wc, 1.0], dt, "zoh", settled=False)
             else:
                 shp = np.zeros(run["n"])
                 for _ in range(int(rng.integers(1, 5))):
