@@ -5,8 +5,9 @@ Written from the physical definitions only (shared/spec, shared/research), apart
 firmware-sim and the diagnosis. Everything here is noise-free except the explicit noise
 draws; the effects of effects.py are added as contributions on top of these signals.
 
-The rig (`Rig`): a forced-roll delta wing on a balance, one port trailing-edge jet, 12
-upper-surface taps.
+The rig (`Rig`): a forced-roll delta wing on a balance, a port trailing-edge jet (and, in the
+rigs `Rig.random` draws, a mirrored starboard jet with its own blowing), 12 upper-surface
+taps.
 - Flow: each half-wing's effective incidence (body-axis roll kinematics, sideslip and
   roll-rate terms) drives a logistic static lift-loss curve through a second-order lift
   response; the roll moment is the lift asymmetry plus sideslip, linear and quadratic
