@@ -3,7 +3,7 @@
 --campaign DIR`.
 
     campaign.py --out DIR --seed N [--cases-per-class K] [--duration-s 20] [--alphas auto|a,b,c]
-                [--workers 2] [--own-outside-classes]
+                [--workers 2] [--classes none,coupling,...]
     campaign.py --list-forms
 
 README
@@ -31,11 +31,8 @@ where the form has no size to calibrate).
 
 Classes: "none", the 11 vocabulary effects and five outside it (q_fluctuation,
 cubic_stiffness, rig_tone, encoder, balance_saturation), K cases each, case ids shuffled.
-The scorer (host-tools validate-diagnosis --campaign) knows only q_fluctuation and
-cubic_stiffness as outside classes and refuses a truth whose class it does not know, so by
-default the truth's `class` of rig_tone is "q_fluctuation" and that of encoder and
-balance_saturation "cubic_stiffness" (all are scored as outside the vocabulary; `effect` and
-`form` name the real one); `--own-outside-classes` writes their own names instead.
+Every class is written under its own name; the scorer
+(host-tools validate-diagnosis --campaign) scores any class outside the vocabulary as outside.
 
 Forms. Each case's form is drawn from its class's forms: per class the forms are shuffled
 (from the campaign seed) and the class's k-th case takes the (k mod n)-th, so K >= n cases
@@ -273,7 +270,7 @@ def form_schedule(seed, classes):
 
 def make_case(job):
     """Generate and write one case; returns its truth."""
-    rig, alphas, duration, out, case_id, cls, seed, form, own_outside = job
+    rig, alphas, duration, out, case_id, cls, seed, form = job
     t_start = time.time()
     case = Case(rig, alphas, duration, seed)
     truth = {"id": case_id, "class": cls, "form": "none", "params": {}, "channels": [], "channel_ratios": {},
@@ -300,7 +297,7 @@ def make_case(job):
         if chans and len(chans) == 1:
             recover.setdefault("channel", effects.CHANNELS[chans[0]])
         truth.update({
-            "class": cls if own_outside else effects.SCORED_OUTSIDE.get(cls, cls),
+            "class": cls,
             "form": f"{cls}/{st['form']}",
             "params": {k: clean_number(x) for k, x in st["params"].items()},
             "channels": [effects.CHANNELS[c] for c in chans] if chans else [],
@@ -323,14 +320,12 @@ def main():
     parser.add_argument("--duration-s", type=float, default=20.0)
     parser.add_argument("--alphas", default="auto")
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--classes", help="comma-separated classes to draw (default: every class)")
     parser.add_argument("--list-forms", action="store_true", help="print the classes and their form ids, and stop")
-    parser.add_argument("--own-outside-classes", action="store_true",
-                        help="write the outside effects' own names as the truth's class (rig_tone, encoder, "
-                             "balance_saturation), which the current scorer refuses as unknown classes")
     args = parser.parse_args()
     if args.list_forms:
         for c, forms in form_table().items():
-            kind = "outside" if c in effects.SCORED_OUTSIDE else "vocabulary"
+            kind = "outside" if c in effects.OUTSIDE else "vocabulary"
             print(f"{c} ({kind}, {len(forms)} forms): {' '.join(forms)}")
         return
     if args.out is None or args.seed is None:
@@ -344,7 +339,11 @@ def main():
         alphas = [round(float(ar.uniform(lo, hi)), 1) for lo, hi in ((0.0, 4.0), (8.0, 13.0), (16.0, 22.0))]
     else:
         alphas = [float(a) for a in args.alphas.split(",")]
-    classes = [c for c in CLASSES for _ in range(args.cases_per_class)]
+    chosen = CLASSES if args.classes is None else args.classes.split(",")
+    unknown = [c for c in chosen if c not in CLASSES]
+    if unknown:
+        parser.error(f"--classes: unknown class {unknown[0]!r} (expected one of {', '.join(CLASSES)})")
+    classes = [c for c in chosen for _ in range(args.cases_per_class)]
     np.random.default_rng([seed, 2]).shuffle(classes)
     os.makedirs(os.path.join(args.out, "sealed"), exist_ok=True)
     os.makedirs(os.path.join(args.out, "cases"), exist_ok=True)
@@ -353,7 +352,7 @@ def main():
     Case(rig, alphas, args.duration_s, seed_of(seed, 4)).write(os.path.join(args.out, "clean"))
     print(f"campaign.py: clean recording written ({time.time() - t0:.1f} s)", file=sys.stderr)
     forms = form_schedule(seed, classes)
-    jobs = [(rig, alphas, args.duration_s, args.out, i, cls, seed_of(seed, 3, i), forms[i], args.own_outside_classes)
+    jobs = [(rig, alphas, args.duration_s, args.out, i, cls, seed_of(seed, 3, i), forms[i])
             for i, cls in enumerate(classes)]
     entries = {}
     done = 0

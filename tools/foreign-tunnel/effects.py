@@ -874,10 +874,9 @@ EFFECTS = {e.name: e for e in [ActuatorDelay(), ActuatorLag(), InertialTare(), G
                                VortexLag(), Coupling(), PressureLag(), PressureFault(), BalanceResonance(),
                                BiasDrift(), QFluctuation(), CubicStiffness(), RigTone(), Encoder(),
                                BalanceSaturation()]}
-# The outside classes that the scorer (host-tools validate) knows by name; the others are written
-# under one of these in the truth's "class" unless the campaign asks for their own names.
-SCORED_OUTSIDE = {"q_fluctuation": "q_fluctuation", "cubic_stiffness": "cubic_stiffness",
-                  "rig_tone": "q_fluctuation", "encoder": "cubic_stiffness", "balance_saturation": "cubic_stiffness"}
+# The classes outside the diagnosis vocabulary (the contract's table): a diagnosis should call
+# them `unattributed`.
+OUTSIDE = ("q_fluctuation", "cubic_stiffness", "rig_tone", "encoder", "balance_saturation")
 
 
 # ---------------------------------------------------------------------------------------------
