@@ -5,8 +5,9 @@ Written from the physical definitions only (shared/spec, shared/research), apart
 firmware-sim and the diagnosis. Everything here is noise-free except the explicit noise
 draws; the effects of effects.py are added as contributions on top of these signals.
 
-The rig (`Rig`): a forced-roll delta wing on a balance, one port trailing-edge jet, 12
-upper-surface taps.
+The rig (`Rig`): a forced-roll delta wing on a balance, a port trailing-edge jet (and, in the
+rigs `Rig.random` draws, a mirrored starboard jet with its own blowing), 12 upper-surface
+taps.
 - Flow: each half-wing's effective incidence (body-axis roll kinematics, sideslip and
   roll-rate terms) drives a logistic static lift-loss curve through a second-order lift
   response; the roll moment is the lift asymmetry plus sideslip, linear and quadratic
@@ -96,6 +97,11 @@ class Rig:
     blow_zero_prob: float = 0.2
     ra_blow_start_s: float = 5.0
     a_blow_start_s: float = 0.5
+    # Starboard jet (False: the original port-only rig): its moment is the port jet's mirrored,
+    # ratio x as strong; its own blowing levels; its suction on the taps `taps_gain_stbd`.
+    stbd_jet: bool = False
+    stbd_gain_ratio: float = 1.0
+    taps_gain_stbd: np.ndarray = field(default_factory=lambda: np.zeros(12))
     # File conventions.
     t0_s: float = 12.5
     nan_channel: int = 4
@@ -148,7 +154,7 @@ class Rig:
         ga[:, 3] = np.where(port, other, own)
         ga[:, 5] = -rng.uniform(0.1, 0.5, 12)
         hold_lo = un(0.2, 0.4)
-        return cls(
+        rig = cls(
             u_mps=round(un(7.0, 12.0), 2), rho=round(un(1.15, 1.22), 3),
             chord=round(chord, 4), span=round(span, 4), area=round(area, 5),
             ixx=float(f"{ixx:.4g}"), mass=round(mass, 4),
@@ -167,6 +173,11 @@ class Rig:
             a_blow_start_s=un(0.3, 1.0), t0_s=round(un(0.0, 100.0), 3), nan_channel=int(rng.integers(0, 12)),
             nan_count=int(rng.integers(5, 40)), temperature_c=round(un(15.0, 28.0), 1), settled=True,
         )
+        # Drawn last, so the draws above are those of the port-only rigs.
+        rig.stbd_jet = True
+        rig.stbd_gain_ratio = un(0.8, 1.2)
+        rig.taps_gain_stbd = np.where(port, rng.uniform(-0.02, 0.02, 12), -rng.uniform(0.02, 0.1, 12))
+        return rig
 
 
 # ---------------------------------------------------------------------------------------------
@@ -238,13 +249,14 @@ def second_order_legacy(u, dt, wn, zeta):
 
 
 def c2d(num, den, dt, method="zoh"):
-    """Discretise a continuous transfer function: 'zoh' (exact for held input) or 'tustin'."""
+    """Discretise a continuous transfer function: 'zoh' (exact for held input), 'foh' (exact
+    for a linearly interpolated input) or 'tustin' (bilinear)."""
     return _c2d(tuple(float(x) for x in num), tuple(float(x) for x in den), float(dt), method)
 
 
 @functools.lru_cache(maxsize=4096)
 def _c2d(num, den, dt, method):
-    if len(den) == 2 and len(num) == 1:
+    if len(den) == 2 and len(num) == 1 and method in ("zoh", "tustin"):
         # First-order lag k / (tau s + 1), in closed form.
         k, tau = num[0] / den[1], den[0] / den[1]
         if method == "tustin":
@@ -255,7 +267,7 @@ def _c2d(num, den, dt, method):
     if method == "tustin":
         b, a = signal.bilinear(num, den, fs=1.0 / dt)
     else:
-        b, a, _ = signal.cont2discrete((num, den), dt, method="zoh")
+        b, a, _ = signal.cont2discrete((num, den), dt, method=method)
         b = np.ravel(b)
     b = np.asarray(b, float)
     a = np.asarray(a, float)
@@ -322,24 +334,35 @@ def jet_gain(rig, alpha_deg):
     return rig.jet_gain * (1.0 - rig.jet_gain_a2 * (alpha_deg / 20.0) ** 2)
 
 
-def actuation(rig, fl, cmu_eff):
-    """The jet's moment and the plant's own blowing-roll coupling for an effective Cmu."""
+def actuation(rig, fl, cmu_eff, cmu_eff_s=None):
+    """The jets' moment and the plant's own blowing-roll coupling for the effective Cmu of the
+    port jet (and of the starboard jet, mirrored, when the rig has one)."""
     dt = 1.0 / rig.hz
     c = np.maximum(cmu_eff, 0.0) / rig.cmu_max
     gain = jet_gain(rig, fl["alpha_deg"])
-    jet = second_order(rig.jet_sign * gain * c**rig.jet_power, dt, 2 * np.pi * rig.f_j, rig.zeta_j, rig.settled)
-    coupling = -rig.cc_rate * c * fl["p_hat"] + rig.cc_phi * c * np.sin(fl["phi"]) * math.sin(math.radians(fl["alpha_deg"]))
+    u = c**rig.jet_power
+    cd = c
+    if cmu_eff_s is not None:
+        cs = np.maximum(cmu_eff_s, 0.0) / rig.cmu_max
+        u = u - rig.stbd_gain_ratio * cs**rig.jet_power
+        cd = c - cs
+        c = c + cs
+    jet = second_order(rig.jet_sign * gain * u, dt, 2 * np.pi * rig.f_j, rig.zeta_j, rig.settled)
+    coupling = -rig.cc_rate * c * fl["p_hat"] + rig.cc_phi * cd * np.sin(fl["phi"]) * math.sin(math.radians(fl["alpha_deg"]))
     return jet, coupling
 
 
-def taps(rig, fl, cmu_eff):
-    """The 12 pressure coefficients (noise-free) for an effective Cmu."""
+def taps(rig, fl, cmu_eff, cmu_eff_s=None):
+    """The 12 pressure coefficients (noise-free) for the effective Cmu (port, starboard)."""
     n = len(cmu_eff)
     states = np.vstack([fl["beta"], fl["p_hat"], fl["l_port"], fl["l_stbd"], cmu_eff / rig.cmu_max, np.ones(n)])
     gain = rig.taps_gain
     if np.any(rig.taps_gain_alpha):
         gain = gain + math.sin(math.radians(fl["alpha_deg"])) / math.sin(math.radians(20.0)) * rig.taps_gain_alpha
-    return first_order_legacy(gain @ states, 1.0 / rig.hz, rig.tube_tau_s)
+    cp = gain @ states
+    if cmu_eff_s is not None:
+        cp = cp + np.outer(rig.taps_gain_stbd, cmu_eff_s / rig.cmu_max)
+    return first_order_legacy(cp, 1.0 / rig.hz, rig.tube_tau_s)
 
 
 def plant_cmu(rig, cmu):
