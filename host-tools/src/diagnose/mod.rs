@@ -157,12 +157,16 @@ pub fn diagnose(
             .iter()
             .map(|p| (p.candidate.name().to_owned(), streams.to_noise(p.selected())))
             .chain(sensor.findings.iter().map(|f| (f.floor_key(), sensor_selected_to_noise(f))))
+            .chain(sensor.channel_lags.iter().map(|f| {
+                (sensor::channel_lag_key(f.channels.first().map_or("", String::as_str)), sensor_selected_to_noise(f))
+            }))
             .filter(|(_, value)| value.is_finite())
             .collect(),
         probe_to_noise: probe.base.clone(),
         gap_to_noise_by_kind: gaps.by_kind.clone(),
         pressure_alignment_s: pressure_lag::Alignment::new(&streams.runs, |run| run.fit_samples().collect())
             .and_then(|alignment| alignment.reference()),
+        pressure_alignment_scatter_s: pressure_lag::run_scatter_s(&streams.runs, pressure_lag::REFERENCE_RANGE_S),
     };
 
     let mut effects = Vec::new();

@@ -41,6 +41,49 @@ pub const TAU_RANGE_S: (f64, f64) = (-0.2, 0.6);
 /// distance between its own optimum and the end.
 pub const REFERENCE_RANGE_S: (f64, f64) = (-0.2, 0.2);
 
+/// Standard errors a common lag must lie beyond the sim's own alignment: the alignment of the
+/// sim's data and that of the recording each scatter with the excitation (the pressure model's
+/// error moves the best time constant by several milliseconds from recording to recording on a
+/// rig the model was not built on), and a lag counts only beyond that scatter.
+const LAG_SIGNIFICANCE_Z: f64 = 3.0;
+
+/// The sim's own alignment of the taps with the balance on the data it was fitted on (its
+/// signature), and the standard error of that estimate ([`run_scatter_s`]).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Reference {
+    /// The alignment, s.
+    pub tau_s: f64,
+    /// Its standard error, s (0 when unknown).
+    pub scatter_s: f64,
+}
+
+impl From<f64> for Reference {
+    fn from(tau_s: f64) -> Self {
+        Self { tau_s, scatter_s: 0.0 }
+    }
+}
+
+/// The standard error of the alignment of every channel over the runs, s: each run aligned on
+/// its own fitted samples within `range`, the spread of those alignments over the square root
+/// of their number. `None` with fewer than three runs aligned inside the range. The runs differ
+/// in their excitation as recordings do, so their spread is the scatter that the excitation
+/// gives the alignment through the pressure model's error.
+#[must_use]
+pub fn run_scatter_s(runs: &[RunStreams], range: (f64, f64)) -> Option<f64> {
+    use rayon::prelude::*;
+    let per_run: Vec<f64> = runs
+        .par_iter()
+        .filter_map(|run| Alignment::new(std::slice::from_ref(run), |r| r.fit_samples().collect())?.shared_in(range))
+        .collect();
+    if per_run.len() < 3 {
+        return None;
+    }
+    let n = per_run.len() as f64;
+    let mean = per_run.iter().sum::<f64>() / n;
+    let var = per_run.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    Some((var / n).sqrt())
+}
+
 /// A channel with fewer finite samples than this share of its training part takes no part in
 /// the alignment (a dead channel is the fault candidate's).
 const MIN_FINITE_SHARE: f64 = 0.5;
@@ -341,7 +384,9 @@ fn minimise(mut f: impl FnMut(f64) -> f64, range: (f64, f64)) -> f64 {
 /// The time constant and the balance's weights on the taps are fitted on the training part
 /// only; the selection and held-out parts are judged with both fixed ([`part_check`]).
 #[must_use]
-pub fn finding(runs: &[RunStreams], reference_tau_s: f64) -> Option<SensorFinding> {
+pub fn finding(runs: &[RunStreams], reference: impl Into<Reference>) -> Option<SensorFinding> {
+    let reference = reference.into();
+    let reference_tau_s = reference.tau_s;
     let alignment = Alignment::new(runs, |run| run.fit_samples().collect())?;
     let n_taps = alignment.taps().len();
     let ssr_reference = alignment.ssr(&vec![reference_tau_s; n_taps]);
@@ -356,6 +401,12 @@ pub fn finding(runs: &[RunStreams], reference_tau_s: f64) -> Option<SensorFindin
     }
     let delta_bic = n_eff * (ssr_reference / alignment.ssr(&taus).max(f64::MIN_POSITIVE)).ln() - n_eff.ln();
     let lag_s = shared - reference_tau_s;
+    // Beyond the scatter of both alignments: the recording's from its runs (a run that cannot be
+    // aligned inside the range adds nothing), the sim's from its signature.
+    let scatter_s = run_scatter_s(runs, (TAU_RANGE_S.0.min(reference_tau_s - 0.1), TAU_RANGE_S.1)).unwrap_or(0.0);
+    if lag_s < LAG_SIGNIFICANCE_Z * scatter_s.hypot(reference.scatter_s) {
+        return None;
+    }
     let (explained, _) = lag_deviation(runs, alignment.taps(), &|run| run.fit_samples().collect(), lag_s);
     let noise_var = {
         let mut differences = Vec::new();
@@ -641,5 +692,18 @@ mod tests {
         assert_eq!(found.channels.len(), TAPS);
         assert!(found.selection.removed() > 0.25 * found.noise_var, "{:?}", found.selection);
         assert!(found.heldout.shrink() > 0.7, "held-out shrink {}", found.heldout.shrink());
+    }
+
+    /// A common lag counts only beyond the scatter of the two alignments: three runs lagged by
+    /// 60 ms align within a few milliseconds of each other, so the lag stands against a sim
+    /// whose own alignment is known exactly; against one known only within 30 ms (three
+    /// standard errors are 90 ms) it is no lag.
+    #[test]
+    fn a_common_lag_within_the_scatter_of_the_alignments_is_no_lag() {
+        let runs: Vec<RunStreams> = (4..7).map(|seed| run(seed, &[0.06; TAPS])).collect();
+        let scatter = run_scatter_s(&runs, TAU_RANGE_S).expect("three runs aligned");
+        assert!(scatter < 0.005, "scatter {scatter}");
+        assert!(finding(&runs, Reference { tau_s: 0.0, scatter_s: 0.0 }).is_some());
+        assert!(finding(&runs, Reference { tau_s: 0.0, scatter_s: 0.03 }).is_none());
     }
 }

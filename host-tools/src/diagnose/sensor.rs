@@ -62,16 +62,18 @@ pub fn channel_name(tap: usize) -> String {
     format!("cp{:02}", tap + 1)
 }
 
-/// Every sensor finding, strongest first. `reference_tau_s` is the sim's own alignment of the
-/// taps with the balance ([`super::pressure_lag::finding`]).
+/// Every sensor finding, strongest first. `reference` is the sim's own alignment of the taps
+/// with the balance and its scatter ([`super::pressure_lag::finding`]).
 #[must_use]
-pub fn findings(runs: &[RunStreams], reference_tau_s: f64) -> Vec<SensorFinding> {
+pub fn findings(runs: &[RunStreams], reference: impl Into<super::pressure_lag::Reference>) -> Vec<SensorFinding> {
+    let reference = reference.into();
+    let reference_tau_s = reference.tau_s;
     let n_taps = runs.first().map_or(0, |run| run.cp.len());
     let mut out = Vec::new();
     if n_taps == 0 {
         return out;
     }
-    let mut alignment = super::pressure_lag::finding(runs, reference_tau_s);
+    let mut alignment = super::pressure_lag::finding(runs, reference);
     let mut some = lag_findings(runs, n_taps);
     // A lag of some channels shifts the alignment of all twelve too, and a lag of every channel
     // can leave some standing out in the innovations: the balance, which reads the pressures
@@ -261,6 +263,37 @@ fn lag_findings(runs: &[RunStreams], n_taps: usize) -> Vec<SensorFinding> {
     // The choice of the channels costs ln C(n, k).
     finding.delta_bic -= (1..=lagged.len()).map(|i| ((n_taps - lagged.len() + i) as f64 / i as f64).ln()).sum::<f64>();
     vec![finding]
+}
+
+/// The key of a lag of `channel` alone in the sim's signature ([`channel_lags`]).
+#[must_use]
+pub fn channel_lag_key(channel: &str) -> String {
+    format!("{}:{channel}:alone", Effect::PressureLag)
+}
+
+/// A lag of each channel alone, at its best time constant, judged on what the filter without
+/// the channel expects of it: what the family finds on each channel of data without a lag is
+/// the pressure model's own error there, the floor of a lag of any set of channels (the
+/// family's choice of a set is made on the channels that stand out, so the set the sim's own
+/// data chose says nothing of the others). Keyed by [`channel_lag_key`].
+#[must_use]
+pub fn channel_lags(runs: &[RunStreams]) -> Vec<SensorFinding> {
+    let Some(first) = runs.first() else { return Vec::new() };
+    let (n_taps, grid) = (first.cp.len(), lag_grid(first.sample_hz));
+    let alone: Judged<'_> =
+        runs.iter().map(|run| run.innovation_alone.iter().take(n_taps).map(Vec::as_slice).collect()).collect();
+    best_lags(runs, &alone, &grid, n_taps)
+        .into_iter()
+        .enumerate()
+        .filter_map(|(tap, best)| {
+            let (tau_idx, _) = best?;
+            let segments = segments_judged(runs, &alone, tap);
+            let columns: Vec<Vec<Vec<f64>>> =
+                runs.iter().zip(&alone).map(|(run, nu)| vec![lag_column(run, nu[tap], tap, grid[tau_idx])]).collect();
+            let fit = regression::fit_through_origin(&segments, &columns)?;
+            Some(lag_finding(&segments, &columns, &fit, &[(tap, grid[tau_idx])], 2))
+        })
+        .collect()
 }
 
 /// Per channel, its best time constant on the grid (index) and what that lag explains in noise

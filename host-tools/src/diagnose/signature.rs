@@ -31,6 +31,10 @@ pub struct Signature {
     /// beyond it.
     #[serde(default)]
     pub pressure_alignment_s: Option<f64>,
+    /// The standard error of [`Self::pressure_alignment_s`], s, from the scatter of its runs'
+    /// own alignments ([`super::pressure_lag::run_scatter_s`]).
+    #[serde(default)]
+    pub pressure_alignment_scatter_s: Option<f64>,
 }
 
 /// File name of a model's signature in its folder.

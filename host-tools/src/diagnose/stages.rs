@@ -223,6 +223,9 @@ impl ProbeResult {
 pub struct SensorAttribution {
     /// Every finding, strongest first.
     pub findings: Vec<SensorFinding>,
+    /// A lag of each channel alone, at its best time constant: not named, the floors of a lag
+    /// of any set of channels in the sim's signature.
+    pub channel_lags: Vec<SensorFinding>,
     /// The qualifying finding with the most excess, if any.
     pub named: Option<SensorFinding>,
 }
@@ -238,15 +241,32 @@ pub(super) fn sensor_selected_to_noise(finding: &SensorFinding) -> f64 {
 
 impl SensorAttribution {
     pub(super) fn run(streams: &Streams, floor: &Signature) -> Self {
-        let findings = sensor::findings(&streams.runs, floor.pressure_alignment_s.unwrap_or(0.0));
-        let min_ratio = MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE;
+        let findings = sensor::findings(
+            &streams.runs,
+            pressure_lag::Reference {
+                tau_s: floor.pressure_alignment_s.unwrap_or(0.0),
+                scatter_s: floor.pressure_alignment_scatter_s.unwrap_or(0.0),
+            },
+        );
+        let channel_lags = sensor::channel_lags(&streams.runs);
         let named = findings
             .iter()
-            .filter(|f| Self::excess_of(f, floor) >= min_ratio && f.delta_bic >= MIN_DELTA_BIC)
+            .filter(|f| Self::qualifies(f, floor))
             .filter(|f| Self::stands_out(f, &findings, floor))
             .max_by(|a, b| Self::excess_of(a, floor).total_cmp(&Self::excess_of(b, floor)))
             .cloned();
-        Self { findings, named }
+        Self { findings, channel_lags, named }
+    }
+
+    /// Whether a finding clears its floor: it removes at least the least effect to name beyond
+    /// the floor, and at least the floor again, with the evidence of [`MIN_DELTA_BIC`]. The
+    /// floor is measured once, on one recording, and the pressure model's error on a channel
+    /// changes with the excitation from recording to recording, so the floor is taken as known
+    /// within a factor of two, as the gap per run takes its own ([`PooledGap::beyond`]).
+    pub(super) fn qualifies(finding: &SensorFinding, floor: &Signature) -> bool {
+        let min_ratio = MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE;
+        Self::excess_of(finding, floor) >= min_ratio.max(Self::floor_of(finding, floor))
+            && finding.delta_bic >= MIN_DELTA_BIC
     }
 
     /// Whether a fault of one channel stands out from the other channels (any other finding
@@ -274,7 +294,25 @@ impl SensorAttribution {
     }
 
     pub(super) fn excess_of(finding: &SensorFinding, floor: &Signature) -> f64 {
-        sensor_selected_to_noise(finding) - floor.of(&finding.floor_key())
+        sensor_selected_to_noise(finding) - Self::floor_of(finding, floor)
+    }
+
+    /// The floor of a finding: what the same finding removed on the sim's own data. A lag of
+    /// some channels is a choice among 4095 sets, and the signature holds the one its own data
+    /// chose; what a lag of each channel alone removed there ([`sensor::channel_lags`]) is the
+    /// floor of any set, as the mean over its channels (a set's strength is its mean per
+    /// sample over its channels).
+    pub(super) fn floor_of(finding: &SensorFinding, floor: &Signature) -> f64 {
+        let own = floor.of(&finding.floor_key());
+        let is_some_channels_lag = finding.effect == firmware_sim::effect::Effect::PressureLag
+            && !finding.params.iter().any(|(key, value)| key == "channels" && *value == ParamValue::Text("all".into()));
+        if !is_some_channels_lag || finding.channels.is_empty() {
+            return own;
+        }
+        let per_channel =
+            finding.channels.iter().map(|channel| floor.of(&sensor::channel_lag_key(channel))).sum::<f64>()
+                / finding.channels.len() as f64;
+        own.max(per_channel)
     }
 
     pub(super) fn strength(&self, floor: &Signature) -> f64 {

@@ -102,7 +102,7 @@ fn probe(structure: f64, remainder_structured: bool) -> ProbeResult {
 }
 
 fn no_sensor() -> SensorAttribution {
-    SensorAttribution { findings: Vec::new(), named: None }
+    SensorAttribution { findings: Vec::new(), channel_lags: Vec::new(), named: None }
 }
 
 /// A gap summary with nothing beyond the sim's own scatter, or everything.
@@ -430,7 +430,11 @@ fn a_named_balance_effect_is_the_verdict_unless_structure_remains() {
 fn a_sensor_effect_wins_only_when_strictly_stronger() {
     let top = profiled(&InertialTare, 0.8, 100.0);
     let named = balance(vec![top.clone()], vec![top]);
-    let sensor = |removed: f64| SensorAttribution { findings: Vec::new(), named: Some(sensor_finding(removed)) };
+    let sensor = |removed: f64| SensorAttribution {
+        findings: Vec::new(),
+        channel_lags: Vec::new(),
+        named: Some(sensor_finding(removed)),
+    };
     assert!(matches!(decide(&named, &probe(0.0, false), &sensor(0.8)), Decision::Balance));
     assert!(matches!(decide(&named, &probe(0.0, false), &sensor(0.8 + 2f64.powi(-30))), Decision::Sensor(_)));
     let alone = decide(&balance(Vec::new(), Vec::new()), &probe(0.0, false), &sensor(0.3));
@@ -497,4 +501,45 @@ fn an_unpredictable_gap_beyond_the_sims_scatter_is_unattributed() {
     };
     assert!(matches!(make(false), Decision::None));
     assert!(matches!(make(true), Decision::Unattributed));
+}
+
+/// A sensor finding clears its floor only by the least effect to name and by the floor again
+/// (the floor taken as known within a factor of two): 2.0 removed over a floor of 1.0 is
+/// exactly enough, a hair less is not; without a floor the least effect to name decides.
+#[test]
+fn a_sensor_finding_must_remove_twice_its_floor() {
+    let tiny = 2f64.powi(-30);
+    let floor = |value: f64| Signature {
+        explained_to_noise: BTreeMap::from([("pressure_fault:cp04".to_owned(), value)]),
+        ..Signature::default()
+    };
+    assert!(SensorAttribution::qualifies(&sensor_finding(2.0), &floor(1.0)));
+    assert!(!SensorAttribution::qualifies(&sensor_finding(2.0 - 1e-9), &floor(1.0)));
+    assert!(SensorAttribution::qualifies(&sensor_finding(MIN_RATIO), &floor(0.0)));
+    assert!(!SensorAttribution::qualifies(&sensor_finding(MIN_RATIO - tiny), &floor(0.0)));
+}
+
+/// A lag of some channels takes as its floor the mean of what a lag of each of its channels
+/// alone removed on the sim's own data, when that exceeds the floor of the set itself; the
+/// common lag of every channel keeps its own key.
+#[test]
+fn a_lag_of_some_channels_has_the_floor_of_its_channels_alone() {
+    let lag = |channels: &[&str], all: bool| SensorFinding {
+        effect: firmware_sim::effect::Effect::PressureLag,
+        params: vec![("channels".into(), ParamValue::Text(if all { "all".into() } else { channels.join(",") }))],
+        channel: None,
+        channels: channels.iter().map(|c| (*c).to_owned()).collect(),
+        ..sensor_finding(1.0)
+    };
+    let floor = Signature {
+        explained_to_noise: BTreeMap::from([
+            (crate::diagnose::sensor::channel_lag_key("cp02"), 0.6),
+            (crate::diagnose::sensor::channel_lag_key("cp07"), 0.2),
+            ("pressure_lag:cp02+cp07".to_owned(), 0.1),
+        ]),
+        ..Signature::default()
+    };
+    assert!((SensorAttribution::floor_of(&lag(&["cp02", "cp07"], false), &floor) - 0.4).abs() < 1e-12);
+    assert_eq!(SensorAttribution::floor_of(&lag(&["cp07"], false), &floor), 0.2);
+    assert_eq!(SensorAttribution::floor_of(&lag(&["cp02", "cp07"], true), &floor), 0.1);
 }
