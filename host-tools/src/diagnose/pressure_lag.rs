@@ -63,25 +63,39 @@ impl From<f64> for Reference {
     }
 }
 
-/// The standard error of the alignment of every channel over the runs, s: each run aligned on
-/// its own fitted samples within `range`, the spread of those alignments over the square root
-/// of their number. `None` with fewer than three runs aligned inside the range. The runs differ
-/// in their excitation as recordings do, so their spread is the scatter that the excitation
-/// gives the alignment through the pressure model's error.
+/// The standard error of the alignment of every channel, s: the jackknife over the runs, each
+/// run left out in turn and the others aligned together within `range` (Efron & Tibshirani,
+/// An Introduction to the Bootstrap, 1993, ch. 11: `sqrt((n - 1) / n sum (a_i - a_mean)^2)`).
+/// `None` with fewer than three runs, or when a channel takes part in some runs only. The runs
+/// differ in their excitation as recordings do, so the spread of the pooled alignment without
+/// each is the scatter that the excitation gives it through the pressure model's error; a
+/// run that cannot fix the alignment on its own (one held at a still roll angle) moves the
+/// pooled estimate little and counts little, where the spread of the runs' own alignments
+/// counted it fully.
 #[must_use]
 pub fn run_scatter_s(runs: &[RunStreams], range: (f64, f64)) -> Option<f64> {
     use rayon::prelude::*;
-    let per_run: Vec<f64> = runs
+    let per_run: Vec<Alignment> = runs
         .par_iter()
-        .filter_map(|run| Alignment::new(std::slice::from_ref(run), |r| r.fit_samples().collect())?.shared_in(range))
+        .filter_map(|run| Alignment::new(std::slice::from_ref(run), |r| r.fit_samples().collect()))
         .collect();
-    if per_run.len() < 3 {
+    if per_run.len() < 3 || per_run.iter().any(|part| part.taps != per_run[0].taps) {
         return None;
     }
-    let n = per_run.len() as f64;
-    let mean = per_run.iter().sum::<f64>() / n;
-    let var = per_run.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
-    Some((var / n).sqrt())
+    let left_out: Vec<f64> = (0..per_run.len())
+        .into_par_iter()
+        .filter_map(|out| {
+            let others: Vec<&Alignment> =
+                per_run.iter().enumerate().filter(|(idx, _)| *idx != out).map(|(_, part)| part).collect();
+            Alignment::merged(&others).shared_in(range)
+        })
+        .collect();
+    if left_out.len() < 3 {
+        return None;
+    }
+    let n = left_out.len() as f64;
+    let mean = left_out.iter().sum::<f64>() / n;
+    Some(((n - 1.0) / n * left_out.iter().map(|v| (v - mean).powi(2)).sum::<f64>()).sqrt())
 }
 
 /// A channel with fewer finite samples than this share of its training part takes no part in
@@ -191,6 +205,29 @@ impl Alignment {
             }
         }
         (!groups.is_empty()).then_some(Self { taps, groups })
+    }
+
+    /// The alignment of the samples of several alignments with the same channels: their sums
+    /// per angle of attack added (each run is centred on its own, so the sums add exactly).
+    fn merged(parts: &[&Self]) -> Self {
+        let mut by_alpha: BTreeMap<i64, Group> = BTreeMap::new();
+        for group in parts.iter().flat_map(|part| &part.groups) {
+            match by_alpha.get_mut(&group.alpha_key) {
+                Some(sum) => {
+                    sum.gram += &group.gram;
+                    sum.cross += &group.cross;
+                    sum.yy += group.yy;
+                    sum.n += group.n;
+                }
+                None => {
+                    by_alpha.insert(group.alpha_key, group.clone());
+                }
+            }
+        }
+        Self {
+            taps: parts.first().map(|part| part.taps.clone()).unwrap_or_default(),
+            groups: by_alpha.into_values().collect(),
+        }
     }
 
     /// The channels that take part (0-based taps).
