@@ -219,6 +219,14 @@ impl ProbeResult {
     }
 }
 
+/// Least share of its channels' gap beyond the noise that a sensor effect must remove to be
+/// named: at least half as much as everything else there together (the pressure model's own
+/// error on those channels), so one third. The diagnosis names the effect that causes the gap;
+/// on a rig the pressure model was not built on, that model's error is most of a channel's gap,
+/// and a lag or fault fitted to it removes a sliver (a tenth to a sixth on clean recordings of
+/// the second tunnel, where injected lags and faults removed from 0.45 to all of it).
+pub(super) const MIN_SENSOR_GAP_SHARE: f64 = 1.0 / 3.0;
+
 /// Stage 4: the sensor candidates on the pressure channels, and the one named if it qualifies.
 pub struct SensorAttribution {
     /// Every finding, strongest first.
@@ -263,10 +271,25 @@ impl SensorAttribution {
     /// floor is measured once, on one recording, and the pressure model's error on a channel
     /// changes with the excitation from recording to recording, so the floor is taken as known
     /// within a factor of two, as the gap per run takes its own ([`PooledGap::beyond`]).
+    ///
+    /// And it must be a cause of its channels' gap, not a sliver of it: on the selection part it
+    /// removes at least [`MIN_SENSOR_GAP_SHARE`] of the mean square its channels hold beyond
+    /// the noise ([`Self::gap_share`]).
     pub(super) fn qualifies(finding: &SensorFinding, floor: &Signature) -> bool {
         let min_ratio = MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE;
         Self::excess_of(finding, floor) >= min_ratio.max(Self::floor_of(finding, floor))
             && finding.delta_bic >= MIN_DELTA_BIC
+            && Self::gap_share(finding) >= MIN_SENSOR_GAP_SHARE
+    }
+
+    /// The share of its channels' mean square beyond the noise on the selection part that a
+    /// finding removes (1 for a dead channel, whose whole signal is the gap; 0 without a gap).
+    pub(super) fn gap_share(finding: &SensorFinding) -> f64 {
+        if finding.explained.is_infinite() {
+            return 1.0;
+        }
+        let gap = finding.selection.mse_before - finding.selection.noise_var;
+        if gap > 0.0 { finding.selection.removed() / gap } else { 0.0 }
     }
 
     /// Whether a fault of one channel stands out from the other channels (any other finding

@@ -509,14 +509,19 @@ fn an_unpredictable_gap_beyond_the_sims_scatter_is_unattributed() {
 #[test]
 fn a_sensor_finding_must_remove_twice_its_floor() {
     let tiny = 2f64.powi(-30);
+    // All of the channel's gap beyond the noise is the finding's.
+    let finding = |removed: f64| SensorFinding {
+        selection: HeldoutGap { mse_before: 1.0 + removed, mse_after: 1.0, noise_var: 1.0, n: 100, floor_var: 0.0 },
+        ..sensor_finding(removed)
+    };
     let floor = |value: f64| Signature {
         explained_to_noise: BTreeMap::from([("pressure_fault:cp04".to_owned(), value)]),
         ..Signature::default()
     };
-    assert!(SensorAttribution::qualifies(&sensor_finding(2.0), &floor(1.0)));
-    assert!(!SensorAttribution::qualifies(&sensor_finding(2.0 - 1e-9), &floor(1.0)));
-    assert!(SensorAttribution::qualifies(&sensor_finding(MIN_RATIO), &floor(0.0)));
-    assert!(!SensorAttribution::qualifies(&sensor_finding(MIN_RATIO - tiny), &floor(0.0)));
+    assert!(SensorAttribution::qualifies(&finding(2.0), &floor(1.0)));
+    assert!(!SensorAttribution::qualifies(&finding(2.0 - 1e-9), &floor(1.0)));
+    assert!(SensorAttribution::qualifies(&finding(MIN_RATIO), &floor(0.0)));
+    assert!(!SensorAttribution::qualifies(&finding(MIN_RATIO - tiny), &floor(0.0)));
 }
 
 /// A lag of some channels takes as its floor the mean of what a lag of each of its channels
@@ -542,4 +547,24 @@ fn a_lag_of_some_channels_has_the_floor_of_its_channels_alone() {
     assert!((SensorAttribution::floor_of(&lag(&["cp02", "cp07"], false), &floor) - 0.4).abs() < 1e-12);
     assert_eq!(SensorAttribution::floor_of(&lag(&["cp07"], false), &floor), 0.2);
     assert_eq!(SensorAttribution::floor_of(&lag(&["cp02", "cp07"], true), &floor), 0.1);
+}
+
+/// A sensor finding that removes less than a third of its channels' gap beyond the noise on
+/// the selection part is a sliver of the gap, not its cause: not named, however large.
+#[test]
+fn a_sensor_finding_must_remove_a_third_of_its_channels_gap() {
+    let with_gap = |removed: f64, gap: f64| SensorFinding {
+        selection: HeldoutGap {
+            mse_before: 1.0 + gap,
+            mse_after: 1.0 + gap - removed,
+            noise_var: 1.0,
+            n: 100,
+            floor_var: 0.0,
+        },
+        ..sensor_finding(removed)
+    };
+    let floor = Signature::default();
+    assert!(SensorAttribution::qualifies(&with_gap(3.0, 9.0), &floor));
+    assert!(!SensorAttribution::qualifies(&with_gap(3.0, 9.1), &floor));
+    assert!((SensorAttribution::gap_share(&with_gap(3.0, 9.0)) - 1.0 / 3.0).abs() < 1e-12);
 }
