@@ -15,10 +15,9 @@ Prints:
 - a parameter-recovery table: per class and parameter, the median relative error
   |diagnosed - true| / |true| over the cases whose first named effect is the injected one.
   The true values are the truth's `recover`; the diagnosed ones are each case's first named
-  effect's params, read from the record's `named_params` (a list aligned with `named`, each
-  a {param: value} dict) or `effects` (a list of {"name", "params"}) when validation.json
-  holds either. The current validation.json holds neither (CaseRecord in
-  host-tools/src/validate/mod.rs keeps only the names), and the table then says so.
+  effect's params, read from the record's `named_params` (the first named effect's
+  {param: value}, as host-tools validate-diagnosis writes it; or a list aligned with `named`)
+  or `effects` (a list of {"name", "params"}); without either the table says so.
   Parameter names are matched after unit normalisation: `*_ms` -> `*_s` (/1000),
   `f_hz`, `frequency_hz`, `f1_hz` -> `freq_hz`, `delay_ms`/`tau_ms` likewise.
 """
@@ -50,6 +49,8 @@ def normalise(params):
 
 def diagnosed_params(record):
     """The first named effect's params, or None when validation.json does not keep them."""
+    if isinstance(record.get("named_params"), dict) and record["named_params"]:
+        return record["named_params"]
     if isinstance(record.get("named_params"), list) and record["named_params"]:
         return record["named_params"][0]
     if isinstance(record.get("effects"), list) and record["effects"]:
