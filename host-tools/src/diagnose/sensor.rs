@@ -604,8 +604,9 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
 /// The spikes of one innovation series: single samples or bursts of up to [`SPIKE_MAX_BURST`]
 /// samples, each a stretch of samples beyond [`ORDINARY_SIGMA`] robust standard deviations that
 /// holds at least one beyond [`SPIKE_SIGMA`], with ordinary samples (within
-/// [`ORDINARY_SIGMA`], missing, or none) on both sides; zero elsewhere. A longer excursion is a
-/// lag or a step, not a spike.
+/// [`ORDINARY_SIGMA`], or missing) on both sides; zero elsewhere. A longer excursion is a lag or
+/// a step, not a spike; one at the run's first or last sample has no neighbour on that side (the
+/// pressure filter's first innovations are its start-up, not a reading).
 fn spike_column(nu: &[f64], robust_sigma: f64) -> Vec<f64> {
     let beyond = |idx: usize, sigmas: f64| nu[idx].is_finite() && nu[idx].abs() > sigmas * robust_sigma;
     let mut out = vec![0.0; nu.len()];
@@ -619,7 +620,10 @@ fn spike_column(nu: &[f64], robust_sigma: f64) -> Vec<f64> {
         while idx < nu.len() && beyond(idx, ORDINARY_SIGMA) {
             idx += 1;
         }
-        if idx - start <= SPIKE_MAX_BURST && (start..idx).any(|i| beyond(i, SPIKE_SIGMA)) {
+        // Inside the run: an excursion at either end has no ordinary sample on that side to
+        // tell it from the filter's start-up or the record's end.
+        let inside = start > 0 && idx < nu.len();
+        if inside && idx - start <= SPIKE_MAX_BURST && (start..idx).any(|i| beyond(i, SPIKE_SIGMA)) {
             out[start..idx].copy_from_slice(&nu[start..idx]);
         }
     }

@@ -178,8 +178,9 @@ fn a_burst_longer_than_the_limit_is_no_spike() {
 
 /// A spike needs ordinary neighbours: the samples beyond 3 sigma next to one beyond the spike
 /// threshold belong to it (a burst, kept whole), and the burst ends at an ordinary sample (at
-/// exactly 3 sigma), a missing one, or none (the ends); stretched beyond `SPIKE_MAX_BURST`
-/// samples by its neighbours it is a larger excursion (dropped).
+/// exactly 3 sigma) or a missing one; one at the run's first or last sample has no neighbour
+/// there (the filter's start-up: dropped); stretched beyond `SPIKE_MAX_BURST` samples by its
+/// neighbours it is a larger excursion (dropped).
 #[test]
 fn a_spike_needs_ordinary_neighbours() {
     let with_neighbour = |neighbour: f64| {
@@ -196,7 +197,7 @@ fn a_spike_needs_ordinary_neighbours() {
     let mut ends = vec![0.0; 10];
     ends[0] = 10.0;
     ends[9] = -10.0;
-    assert_eq!(spike_column(&ends, 1.0), ends);
+    assert!(spike_column(&ends, 1.0).iter().all(|v| *v == 0.0));
     let mut excursion = vec![0.0; 100];
     excursion[10..10 + SPIKE_MAX_BURST].fill(4.0);
     excursion[30] = 2.0 * SPIKE_SIGMA;
