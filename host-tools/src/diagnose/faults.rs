@@ -847,9 +847,11 @@ fn mean_after(d: &[(f64, f64)], t0: f64) -> Option<(f64, usize)> {
 /// rise inside it has the fault from its start when its whole variance exceeds that
 /// decisively. The added variance is one value for every run (pooled over the faulty samples);
 /// as for the shared forms ([`AGREEMENT_FACTOR`]) every faulty run's own added variance must
-/// agree with it.
+/// agree with it. A channel noisier from the start of every run has no clean run of its own
+/// to compare with: it is judged against the other channels ([`noisier_than_the_others`]).
+/// `n_taps` is the number of channels.
 #[must_use]
-pub fn fit_noise(runs: &[RunStreams], tap: usize) -> Option<Noise> {
+pub fn fit_noise(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Noise> {
     let diffs: Vec<Vec<(f64, f64)>> = runs.iter().map(|run| squared_differences(run, tap, run.fit_samples())).collect();
     let steps: Vec<Option<(usize, f64)>> = diffs.iter().map(|d| variance_step(d)).collect();
     let mut before: Vec<f64> = diffs
@@ -865,7 +867,7 @@ pub fn fit_noise(runs: &[RunStreams], tap: usize) -> Option<Noise> {
     if base <= 0.0 {
         return None;
     }
-    let (mut onset_s, mut delta_bic) = (Vec::with_capacity(runs.len()), 0.0);
+    let (mut onset_s, mut delta_bic): (Vec<Option<f64>>, f64) = (Vec::with_capacity(runs.len()), 0.0);
     for (d, step) in diffs.iter().zip(&steps) {
         match step {
             Some((p, evidence)) => {
@@ -884,6 +886,16 @@ pub fn fit_noise(runs: &[RunStreams], tap: usize) -> Option<Noise> {
             }
         }
     }
+    let mut base = base;
+    if onset_s.iter().all(Option::is_none)
+        && let Some((reference, evidence)) = noisier_than_the_others(runs, tap, n_taps, &diffs, base)
+    {
+        // Noisier from the start of every run: the others' typical variance is the channel's
+        // own.
+        base = reference;
+        delta_bic = evidence;
+        onset_s = diffs.iter().map(|d| d.first().map(|(t, _)| *t)).collect();
+    }
     let added: Vec<(f64, usize)> = diffs
         .iter()
         .zip(&onset_s)
@@ -900,6 +912,44 @@ pub fn fit_noise(runs: &[RunStreams], tap: usize) -> Option<Noise> {
     }
     // Differences carry twice the noise variance.
     Some(Noise { base_var: base / 2.0, added_var: pooled / 2.0, onset_s, delta_bic })
+}
+
+/// A channel noisier than the other channels of the scanner from the start of every run: its
+/// variance (`own`, of squared differences `diffs` per run) against the median of the others'
+/// (each the median over the runs), `(reference, evidence)` if it exceeds
+/// [`AGREEMENT_FACTOR`] times the reference decisively. Channels of one scanner agree on their
+/// noise within that factor (transducers of one kind); a channel beyond it has noise added.
+/// The evidence is against the most a healthy channel may have, the factor times the
+/// reference, less the cost of the added variance.
+fn noisier_than_the_others(
+    runs: &[RunStreams],
+    tap: usize,
+    n_taps: usize,
+    diffs: &[Vec<(f64, f64)>],
+    own: f64,
+) -> Option<(f64, f64)> {
+    let mut others: Vec<f64> = (0..n_taps)
+        .filter(|&other| other != tap)
+        .filter_map(|other| {
+            let mut per_run: Vec<f64> = runs
+                .iter()
+                .map(|run| squared_differences(run, other, run.fit_samples()))
+                .filter(|d| !d.is_empty())
+                .map(|d| d.iter().map(|(_, v)| v).sum::<f64>() / d.len() as f64)
+                .collect();
+            per_run.sort_by(f64::total_cmp);
+            per_run.get(per_run.len() / 2).copied()
+        })
+        .collect();
+    others.sort_by(f64::total_cmp);
+    let reference = *others.get(others.len() / 2)?;
+    if reference <= 0.0 || own <= AGREEMENT_FACTOR * reference {
+        return None;
+    }
+    let n: usize = diffs.iter().map(Vec::len).sum();
+    let evidence = diffs.iter().map(|d| known_variance_evidence(d, AGREEMENT_FACTOR * reference)).sum::<f64>()
+        - (n as f64 / DIFFERENCE_TAU).max(1.0).ln();
+    (evidence >= MIN_RUN_DELTA_BIC).then_some((reference, evidence))
 }
 
 /// The extra-noise fault's gap over a part of every run, with nothing fitted on the part: the
@@ -1004,7 +1054,7 @@ mod tests {
         for form in Form::ALL {
             assert_eq!(fit_shared(std::slice::from_ref(&run), 0, form, 1.0), None, "{form:?}");
         }
-        assert_eq!(fit_noise(std::slice::from_ref(&run), 0), None);
+        assert_eq!(fit_noise(std::slice::from_ref(&run), 0, 1), None);
     }
 
     /// Nothing fitted: no interval in the training part, the level the training part would
@@ -1126,7 +1176,7 @@ mod tests {
         let extra = Normal::new(0.0, 3.0 * NOISE).expect("a valid deviation");
         let added: Vec<f64> = (0..(DURATION_S * HZ) as usize).map(|_| extra.sample(&mut rng)).collect();
         let runs = [run_with(71, |t_s, e| e + if t_s >= 7.0 { added[(t_s * HZ).round() as usize] } else { 0.0 })];
-        let noise = fit_noise(&runs, 0).expect("extra noise");
+        let noise = fit_noise(&runs, 0, 1).expect("extra noise");
         assert!((noise.added_var.sqrt() - 3.0 * NOISE).abs() < 0.1 * 3.0 * NOISE, "{noise:?}");
         assert!((noise.base_var.sqrt() - NOISE).abs() < 0.1 * NOISE, "{noise:?}");
         assert!(noise.onset_s[0].is_some_and(|t| (t - 7.0).abs() < 0.2), "{noise:?}");

@@ -573,7 +573,7 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
         });
     }
     // Extra noise: the innovation's variance rises from an onset, by one added variance.
-    if let Some(noise) = faults::fit_noise(runs, tap) {
+    if let Some(noise) = faults::fit_noise(runs, tap, n_taps) {
         let start_s = noise.onset_s.iter().flatten().copied().fold(f64::INFINITY, f64::min);
         let runs_with = noise.onset_s.iter().flatten().count();
         let noise_rms = noise.added_var.sqrt();

@@ -597,3 +597,25 @@ fn a_bias_that_differs_from_run_to_run_is_no_fault() {
     let finding = fault_finding(&runs, 1, TAPS);
     assert!(finding.as_ref().is_none_or(|f| text(f, "mode") != "bias" || !qualifies(f)), "{finding:?}");
 }
+
+/// cp08 noisier from the start of the run (0.03 added, three times its own): no clean stretch of
+/// its own to compare with, so it is judged against the other channels, and named noise; a
+/// channel only 1.3 times as noisy as the others (transducers differ) is not.
+#[test]
+fn extra_noise_from_the_start_is_named_against_the_other_channels() {
+    let with_added = |seed: u64, rms: f64| {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let extra = Normal::new(0.0, rms).expect("a valid deviation");
+        let added: Vec<f64> = (0..N).map(|_| extra.sample(&mut rng)).collect();
+        recording(seed + 1, move |tap, idx, noise| healthy(tap, idx, noise) + if tap == 7 { added[idx] } else { 0.0 })
+    };
+    let run = with_added(25, 3.0 * NOISE);
+    let finding = fault_finding(std::slice::from_ref(&run), 7, TAPS).expect("a finding");
+    assert_eq!(text(&finding, "mode"), "noise", "{finding:?}");
+    assert!((number(&finding, "noise_rms") - 3.0 * NOISE).abs() < 0.3 * NOISE, "{finding:?}");
+    assert!(number(&finding, "start_s") < 0.01, "{finding:?}");
+    assert!(qualifies(&finding), "{finding:?}");
+    let slightly = with_added(27, (1.3_f64 * 1.3 - 1.0).sqrt() * NOISE);
+    let finding = fault_finding(std::slice::from_ref(&slightly), 7, TAPS);
+    assert!(finding.as_ref().is_none_or(|f| text(f, "mode") != "noise" || !qualifies(f)), "{finding:?}");
+}
