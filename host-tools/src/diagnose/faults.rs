@@ -1,18 +1,19 @@
-//! Where a pressure-channel fault acts in each run (the `pressure_fault` family, shared/spec/
-//! diagnosis.md): a fault can start at any time and end again (a loose connector, a tube that
-//! clears), in any run, or be there throughout; each run gets its own interval, or none, chosen
-//! on the training part by the evidence of the fault's shape in that run alone.
+//! Where and how much a pressure-channel fault acts in each run (the `pressure_fault` family,
+//! shared/spec/diagnosis.md: "one channel stuck, dead (missing), biased, drifting, with a wrong
+//! gain, with extra noise, or spiking ..., from the start of a run or from any moment in it";
+//! docs/diagnosis.md, Pressure faults).
 //!
-//! Two shapes are scanned. A bias adds a constant to the reading over its interval: the
-//! innovation's mean steps (by a value of its own in each run), or sits off zero over the whole
-//! run (an offset from the start). A stuck (or flat-dead) channel
-//! stops following the pressure and reads a constant with its transducer's noise: over the
-//! interval the innovation is that constant less the filter's expectation of the channel, so it
-//! regresses on the expectation with a slope near -1 (a live channel: near 0), and the reading,
-//! smoothed, stays flat where the expectation moves. Flatness is what tells a stuck channel from
-//! one the sim maps with too large a gain (its innovation too regresses on the expectation, but
-//! its reading still follows the pressure). Bit-identical repeats are the noise-free case of the
-//! same shape.
+//! A stuck (or flat-dead) channel is scanned for an interval per run ([`scan`]): it stops
+//! following the pressure and reads a constant with its transducer's noise, so over the interval
+//! the innovation is that constant less the filter's expectation of the channel: it regresses on
+//! the expectation with a slope near -1 (a live channel: near 0), and the reading, smoothed,
+//! stays flat where the expectation moves. Flatness is what tells a stuck channel from one with
+//! a wrong gain (its innovation too regresses on the expectation, but its reading still follows
+//! the pressure). Bit-identical repeats are the noise-free case of the same shape.
+//!
+//! A bias, a drift and a wrong gain ([`Form`], [`fit_shared`]) are one value of the channel for
+//! every run, from an onset of each run's own (or none) to the run's end; extra noise
+//! ([`fit_noise`]) is a variance ratio test with one added variance.
 
 use super::regression::{self, Segment};
 use super::streams::RunStreams;
@@ -37,7 +38,8 @@ const STUCK_FLATNESS: f64 = 0.1;
 /// s: the noise falls by the window's length, the flow's motion (a few hertz) stays.
 const SMOOTHING_HALF_S: f64 = 0.01;
 
-/// The shape of a fault.
+/// The shape of an interval fault (bias, drift and gain are [`Form`]s with one value for every
+/// run, lasting to the run's end).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Shape {
     /// A constant reading (with noise) over the interval.
@@ -49,8 +51,8 @@ pub enum Shape {
 pub struct Onsets {
     /// Per run, the faulty samples `start..end`.
     pub per_run: Vec<Option<std::ops::Range<usize>>>,
-    /// The columns of the fault for [`regression::fit_through_origin`]: for a bias, one level per
-    /// run; for a stuck reading, the shared slope on the expectation, then one level per run.
+    /// The columns of the fault for [`regression::fit_through_origin`]: for a stuck reading, the
+    /// shared slope on the expectation, then one level per run.
     pub columns: Vec<Vec<Vec<f64>>>,
 }
 
@@ -273,16 +275,14 @@ fn best_interval_over(
     (evidence >= MIN_RUN_DELTA_BIC).then(|| samples[a]..samples[b - 1] + 1)
 }
 
-/// What the training part fixed of a fault, for judging it on the other parts: per run, the
-/// interval found there and the fault's level (a bias's constant, a stuck channel's frozen
-/// reading), and the level for a run whose training part had none.
+/// What the training part fixed of a stuck channel, for judging it on the other parts: per run,
+/// the interval found there and the reading the channel froze at.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Trained {
     /// Per run, the interval found on the training part (it runs on into the held-out part
     /// when it reached the training part's end).
     pub per_run: Vec<Option<std::ops::Range<usize>>>,
-    /// Per run, the level fitted on the training part: the bias added to the reading, or the
-    /// reading a stuck channel froze at.
+    /// Per run, the reading the stuck channel froze at on the training part.
     pub levels: Vec<Option<f64>>,
 }
 
@@ -320,9 +320,8 @@ const FROZEN_ONSET_S: f64 = 0.01;
 /// predictable in time, so the fault acts where the training part's interval reaches into the
 /// part and wherever the same detector ([`best_interval_over`], its thresholds and the
 /// innovation's autocorrelation time `tau` fixed on the training part) finds it in the part.
-/// Running a fixed detector fits nothing. How much: nothing is estimated on the part. A bias
-/// keeps its training level (the run's own, or the median over the runs for a run whose
-/// training part had none); a stuck channel reads its frozen value, the training one when the
+/// Running a fixed detector fits nothing. How much: nothing is estimated on the part. A stuck
+/// channel reads its frozen value, the training one when the
 /// interval continues the run's training interval, else the reading at the onset the detector
 /// names (the mean of its first [`FROZEN_ONSET_S`]), the value it froze at. The innovation is
 /// the reading less the filter's expectation, so a stuck channel's predicted innovation is the
