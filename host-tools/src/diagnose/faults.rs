@@ -1203,4 +1203,18 @@ mod tests {
         let gap = noise_part_gap(&healthy, 0, &Noise { onset_s: vec![None], ..noise.clone() }, true);
         assert!(gap.removed().abs() < 1e-12, "{gap:?}");
     }
+
+    /// A bias of 0.027 read with the pressure model's own error from run to run on top (levels
+    /// 0.018 to 0.036, all one way, scattering about a quarter of the value): still one bias,
+    /// at their mean, in every run (a run below half the shared value would read as one
+    /// without the fault: the fixed value fits it worse than none).
+    #[test]
+    fn a_bias_with_the_models_error_from_run_to_run_is_still_one_bias() {
+        let levels = [0.030, 0.036, 0.024, 0.018];
+        let runs: Vec<RunStreams> =
+            levels.iter().enumerate().map(|(k, level)| run_with(80 + k as u64, move |_, e| e + level)).collect();
+        let shared = fit_shared(&runs, 0, Form::Bias, 1.0).expect("a bias");
+        assert!((shared.beta - 0.027).abs() < 0.002, "{shared:?}");
+        assert_eq!(shared.runs_with(), levels.len());
+    }
 }
