@@ -589,16 +589,10 @@ impl RunScan {
 /// Most rounds of choosing the onsets for the shared coefficient and re-fitting it.
 const SHARED_ROUNDS: usize = 20;
 
-/// How far a run's own added noise variance may lie from the shared one and still be the same
-/// fault: within a factor of this either way.
+/// How far a run's own level may lie from the shared one and still be the same fault: within a
+/// factor of this either way. A biased channel's runs agree on its one offset up to the model's
+/// own error; a level of its own in each run (the pressure model's per-run error) does not.
 const AGREEMENT_FACTOR: f64 = 2.0;
-
-/// Most scatter of the faulty runs' own levels (each run's least-squares coefficient from its
-/// onset) about the shared one, as a share of it. A biased channel's runs agree on its one
-/// offset up to the pressure model's own error from run to run; levels of every size and sign
-/// (that error alone) do not. Half the value: the shared value stands at least two scatters
-/// from zero.
-const MAX_LEVEL_SCATTER: f64 = 0.5;
 
 /// A shared-parameter fault fitted on the training part.
 #[derive(Debug, Clone, PartialEq)]
@@ -663,9 +657,8 @@ fn column(run: &RunStreams, tap: usize, form: Form, onset_s: Option<f64>) -> Vec
 /// The coefficient starts at the median of the runs' own decisive coefficients; then, in turn,
 /// each run takes the onset that the coefficient fits best (none unless decisive in that run),
 /// and the coefficient is re-fitted over the runs' faulty samples, until the onsets hold. The
-/// fault is one value: a run whose own decisive coefficient has the other sign refutes it, and
-/// the faulty runs' own coefficients must scatter about the shared one by at most
-/// [`MAX_LEVEL_SCATTER`] of it.
+/// fault is one value: a run whose own coefficient is decisive but disagrees with the shared
+/// one by more than [`AGREEMENT_FACTOR`] (or in sign) refutes it.
 #[must_use]
 pub fn fit_shared(runs: &[RunStreams], tap: usize, form: Form, tau: f64) -> Option<Shared> {
     let scans: Vec<Option<RunScan>> = runs.iter().map(|run| RunScan::new(run, tap, run.fit_samples(), tau)).collect();
@@ -699,23 +692,11 @@ pub fn fit_shared(runs: &[RunStreams], tap: usize, form: Form, tau: f64) -> Opti
             break;
         }
     }
-    // One value: no run reads off the other way, and the faulty runs' own levels (at their
-    // onsets) scatter about the shared one by at most MAX_LEVEL_SCATTER of it.
-    let opposite = own.iter().flatten().any(|(_, b)| b * beta < 0.0);
-    let levels: Vec<f64> = runs
-        .iter()
-        .zip(&scans)
-        .zip(&onsets)
-        .filter_map(|((run, scan), onset)| {
-            let (xy, xx) = scan.as_ref()?.moments(run, form, (*onset)?);
-            (xx > 0.0).then(|| xy / xx)
-        })
-        .collect();
-    if opposite || levels.is_empty() {
-        return None;
-    }
-    let scatter = (levels.iter().map(|l| (l - beta).powi(2)).sum::<f64>() / levels.len() as f64).sqrt();
-    if scatter > MAX_LEVEL_SCATTER * beta.abs() {
+    let agrees = |own: f64| {
+        let ratio = own / beta;
+        (1.0 / AGREEMENT_FACTOR..=AGREEMENT_FACTOR).contains(&ratio)
+    };
+    if own.iter().flatten().any(|(_, b)| !agrees(*b)) || onsets.iter().all(Option::is_none) {
         return None;
     }
     let onset_s = runs
@@ -864,7 +845,8 @@ fn mean_after(d: &[(f64, f64)], t0: f64) -> Option<(f64, usize)> {
 /// own variance is the median over the runs of the variance before the onset; a run without a
 /// rise inside it has the fault from its start when its whole variance exceeds that
 /// decisively. The added variance is one value for every run (pooled over the faulty samples);
-/// every faulty run's own added variance must agree with it within [`AGREEMENT_FACTOR`]. A channel noisier from the start of every run has no clean run of its own
+/// as for the shared forms ([`AGREEMENT_FACTOR`]) every faulty run's own added variance must
+/// agree with it. A channel noisier from the start of every run has no clean run of its own
 /// to compare with: it is judged against the other channels ([`noisier_than_the_others`]).
 /// `n_taps` is the number of channels.
 #[must_use]
