@@ -400,7 +400,7 @@ pub fn delta_bic(fit: &regression::Fit, autocorrelation_time: f64, k: usize) -> 
 /// The fault candidate of one channel (shared/spec/diagnosis.md, pressure_fault: "stuck, dead
 /// (missing), biased, drifting, with a wrong gain, with extra noise, or spiking"): dead when
 /// missing where the others read; otherwise the form with the most evidence (delta BIC) among
-/// stuck, spike, bias, drift, gain and noise, of those the selection part confirms if any. Bias, drift and gain have one parameter for every
+/// stuck, spike, bias, drift, gain and noise. Bias, drift and gain have one parameter for every
 /// run and an onset per run ([`faults::fit_shared`]); noise is a variance ratio test
 /// ([`faults::fit_noise`]).
 fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<SensorFinding> {
@@ -598,15 +598,7 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
             ),
         });
     }
-    // The modes compete by delta BIC among those the selection part confirms (they remove some
-    // of its gap, fitted on nothing there): a mode the training part favours but the selection
-    // part refutes (a stuck interval fitted to the model's error) must not hide one it confirms
-    // (a bias of every run).
-    let confirmed = shapes.iter().any(|shape| shape.selection.removed() > 0.0);
-    shapes
-        .into_iter()
-        .filter(|shape| !confirmed || shape.selection.removed() > 0.0)
-        .max_by(|a, b| a.delta_bic.total_cmp(&b.delta_bic))
+    shapes.into_iter().max_by(|a, b| a.delta_bic.total_cmp(&b.delta_bic))
 }
 
 /// The spikes of one innovation series: single samples or bursts of up to [`SPIKE_MAX_BURST`]
