@@ -1187,8 +1187,8 @@ mod tests {
     }
 
     /// A bias of 0.027 read with the pressure model's own error from run to run on top (levels
-    /// 0.018 to 0.036, all one way, scattering about a quarter of the value): still one bias,
-    /// at their mean, in every run (a run below half the shared value would read as one
+    /// 0.018 to 0.036, all one way, each within a factor of two of their mean): still one
+    /// bias, at their mean, in every run (a run below half the shared value would read as one
     /// without the fault: the fixed value fits it worse than none).
     #[test]
     fn a_bias_with_the_models_error_from_run_to_run_is_still_one_bias() {
