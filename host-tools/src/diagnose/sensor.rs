@@ -1,6 +1,6 @@
 //! Sensor candidates, on the pressure filter's per-channel innovations (docs/diagnosis.md,
 //! Sensor checks): a tubing lag (the innovation follows `-tau dp/dt`, on every channel or
-//! on some) and a faulty channel (stuck, dead, biased or spiking: one channel departs from the
+//! on some) and a faulty channel (stuck, dead, biased, drifting, wrong gain, noisy or spiking: one channel departs from the
 //! other eleven). Gaps here are in Cp units.
 
 use firmware_sim::effect::Effect;
@@ -19,8 +19,16 @@ const SPIKE_SIGMA: f64 = 6.0;
 /// How many times the typical channel's lag evidence a channel's must be to stand out as lagged.
 const STAND_OUT: f64 = 4.0;
 
-/// Longest burst of consecutive spiking samples that still counts as spikes.
-const SPIKE_MAX_BURST: usize = 5;
+/// Longest burst that still counts as a spike, samples: the contract's spikes are "single
+/// samples or bursts" (shared/spec/diagnosis.md, pressure_fault); the tunnels' bursts last up to
+/// 40 samples (docs/diagnosis.md, Pressure faults). A longer excursion is a step, a lag or the
+/// flow, not a spike.
+const SPIKE_MAX_BURST: usize = 40;
+
+/// Innovation beyond this many robust standard deviations is out of the ordinary: a spike's
+/// neighbours must be within it, and a burst is the stretch of samples beyond it around a
+/// sample beyond [`SPIKE_SIGMA`] (a burst's samples need not all be that large).
+const ORDINARY_SIGMA: f64 = 3.0;
 
 /// A sensor finding with its strength.
 #[derive(Debug, Clone, PartialEq)]
@@ -150,7 +158,7 @@ pub fn family_summaries(sample_hz: f64) -> Vec<(Effect, String)> {
         (
             Effect::PressureFault,
             format!(
-                "one channel: dead (missing where the others read); stuck from an onset per run (bit-identical readings, or a constant with the sensor's noise that stops following the pressure); a bias stepping in at its own onset in each run; spikes of 1 to {SPIKE_MAX_BURST} samples beyond {SPIKE_SIGMA} robust standard deviations"
+                "one channel: dead (missing where the others read); stuck from an onset per run (bit-identical readings, or a constant with the sensor's noise that stops following the pressure); from an onset per run (or none) to the run's end, with one value for every run: a bias, a drift (a ramp from the onset), a wrong gain (the reading g Cp), on what the other channels expect of it; extra noise (a variance ratio test on the innovation's differences, one added variance); spikes, single samples or bursts of up to {SPIKE_MAX_BURST} samples beyond {ORDINARY_SIGMA} robust standard deviations holding one beyond {SPIKE_SIGMA}"
             ),
         ),
     ]
@@ -422,7 +430,12 @@ pub fn delta_bic(fit: &regression::Fit, autocorrelation_time: f64, k: usize) -> 
     n_eff * (fit.ssr_base / fit.ssr).ln() - k as f64 * n_eff.ln()
 }
 
-/// The fault candidate of one channel: the most explanatory of dead, stuck, bias and spike.
+/// The fault candidate of one channel (shared/spec/diagnosis.md, pressure_fault: "stuck, dead
+/// (missing), biased, drifting, with a wrong gain, with extra noise, or spiking"): dead when
+/// missing where the others read; otherwise the form with the most evidence (delta BIC) among
+/// stuck, spike, bias, drift, gain and noise. Bias, drift and gain have one parameter for every
+/// run and an onset per run ([`faults::fit_shared`]); noise is a variance ratio test
+/// ([`faults::fit_noise`]).
 fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<SensorFinding> {
     let name = channel_name(tap);
     // Dead: the channel is missing where the others are measured.
@@ -494,7 +507,7 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
         let k = fit.beta.len() + runs_with(&stuck);
         // The training part fixes the intervals and the frozen readings; the parts are judged
         // with them ([`faults::part_gap`]).
-        let trained = faults::Trained::new(runs, tap, faults::Shape::Stuck, &stuck, &fit.beta);
+        let trained = faults::Trained::new(runs, tap, faults::Shape::Stuck, &stuck);
         let part_gap = |heldout: bool| faults::part_gap(runs, tap, faults::Shape::Stuck, tau, &trained, heldout);
         shapes.push(SensorFinding {
             effect: Effect::PressureFault,
@@ -521,14 +534,20 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
             },
         });
     }
-    // Spikes: isolated innovations, or bursts of a few samples, far beyond the channel's robust
-    // spread.
+    // Spikes: single innovations, or bursts of up to SPIKE_MAX_BURST samples, far beyond the
+    // channel's robust spread. The count is of spikes (a burst is one), against the Gaussian
+    // tail's count of samples beyond SPIKE_SIGMA.
     let robust_sigma = robust_sigma(&segments);
     let spike_columns: Vec<Vec<Vec<f64>>> =
         runs.iter().map(|run| vec![spike_column(&run.innovation[tap], robust_sigma)]).collect();
     if let Some(fit) = regression::fit_through_origin(&segments, &spike_columns) {
-        let count: usize = spike_columns.iter().map(|cols| cols[0].iter().filter(|v| **v != 0.0).count()).sum();
+        let count: usize = spike_columns.iter().map(|cols| spike_events(&cols[0])).sum();
         let duration_s: f64 = runs.iter().map(|run| run.len() as f64 / run.sample_hz).sum();
+        let first_spike_s = runs
+            .iter()
+            .zip(&spike_columns)
+            .filter_map(|(run, cols)| cols[0].iter().position(|v| *v != 0.0).map(|i| run.t_s[i]))
+            .fold(f64::INFINITY, f64::min);
         // A spike count the Gaussian tail explains is not a fault.
         let expected = gaussian_tail(SPIKE_SIGMA) * runs.iter().map(RunStreams::len).sum::<usize>() as f64;
         let delta = if (count as f64) > 3.0 * expected + 3.0 { delta_bic(&fit, tau, 1) } else { 0.0 };
@@ -537,6 +556,7 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
             params: vec![
                 ("mode".into(), ParamValue::Text("spike".into())),
                 ("spike_rate_hz".into(), ParamValue::Number(count as f64 / duration_s.max(f64::MIN_POSITIVE))),
+                ("start_s".into(), ParamValue::Number(first_spike_s)),
             ],
             channel: Some(name.clone()),
             channels: vec![name.clone()],
@@ -546,66 +566,106 @@ fn fault_finding(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Senso
             heldout: regression::heldout_gap(&segments, &spike_columns, &[1.0], &fit.touched),
             selection: regression::selection_gap(&segments, &spike_columns, &[1.0], &fit.touched),
             evidence: format!(
-                "{name} has {count} innovations beyond {SPIKE_SIGMA} robust sigma (Gaussian tail: {expected:.1})"
+                "{name} has {count} spikes (single samples or bursts) beyond {SPIKE_SIGMA} robust sigma (Gaussian tail: {expected:.1})"
             ),
         });
     }
-    // Bias: the innovation's mean steps over each run's own interval, by a value of its own.
-    let bias = faults::scan(runs, tap, faults::Shape::Bias, tau);
-    if runs_with(&bias) > 0
-        && let Some(fit) = regression::fit_through_origin(&segments, &bias.columns)
-    {
-        let start_s = onset_s(&bias);
-        let trained = faults::Trained::new(runs, tap, faults::Shape::Bias, &bias, &fit.beta);
-        let largest = fit.beta.iter().copied().fold(0.0, |acc: f64, b| if b.abs() > acc.abs() { b } else { acc });
+    // Bias, drift, wrong gain: one value of the channel for every run, from each run's own
+    // onset (or none) to its end, on what the other channels expect of it.
+    let judged_segments = faults::segments_judged(runs, tap);
+    let judged_tau = regression::integrated_autocorrelation(&judged_segments, 50);
+    let judged_noise_var = regression::difference_noise_var(&judged_segments, None).max(f64::MIN_POSITIVE);
+    for form in faults::Form::ALL {
+        let Some(shared) = faults::fit_shared(runs, tap, form, judged_tau) else { continue };
+        let columns = shared.columns(runs, tap);
+        let Some(fit) = regression::fit_through_origin(&judged_segments, &columns) else { continue };
+        let value = form.reported(shared.beta);
+        let start_s = shared.start_s();
+        let runs_with = shared.runs_with();
         shapes.push(SensorFinding {
             effect: Effect::PressureFault,
             params: vec![
-                ("mode".into(), ParamValue::Text("bias".into())),
-                ("value".into(), ParamValue::Number(largest)),
+                ("mode".into(), ParamValue::Text(form.mode().into())),
+                (form.parameter().into(), ParamValue::Number(value)),
                 ("start_s".into(), ParamValue::Number(start_s)),
-                ("faulty_s".into(), ParamValue::Number(faulty_s(&bias))),
-                ("runs".into(), ParamValue::Number(runs_with(&bias) as f64)),
+                ("faulty_s".into(), ParamValue::Number(shared.faulty_s(runs))),
+                ("runs".into(), ParamValue::Number(runs_with as f64)),
             ],
             channel: Some(name.clone()),
             channels: vec![name.clone()],
             explained: fit.explained_per_sample(),
-            noise_var,
-            delta_bic: delta_bic(&fit, tau, 2 * runs_with(&bias)),
-            heldout: faults::part_gap(runs, tap, faults::Shape::Bias, tau, &trained, true),
-            selection: faults::part_gap(runs, tap, faults::Shape::Bias, tau, &trained, false),
+            noise_var: judged_noise_var,
+            // One shared parameter and an onset per faulty run.
+            delta_bic: delta_bic(&fit, judged_tau, 1 + runs_with),
+            heldout: faults::shared_part_gap(runs, tap, &shared, judged_tau, true),
+            selection: faults::shared_part_gap(runs, tap, &shared, judged_tau, false),
             evidence: format!(
-                "{name}'s innovation mean steps by up to {largest:.4} from t = {start_s:.2} s in {} run(s)",
-                runs_with(&bias)
+                "{name} departs from what the other channels expect of it by one {} of {value:.4} from t = {start_s:.2} s in {runs_with} run(s)",
+                form.mode()
+            ),
+        });
+    }
+    // Extra noise: the innovation's variance rises from an onset, by one added variance.
+    if let Some(noise) = faults::fit_noise(runs, tap, n_taps) {
+        let start_s = noise.onset_s.iter().flatten().copied().fold(f64::INFINITY, f64::min);
+        let runs_with = noise.onset_s.iter().flatten().count();
+        let noise_rms = noise.added_var.sqrt();
+        shapes.push(SensorFinding {
+            effect: Effect::PressureFault,
+            params: vec![
+                ("mode".into(), ParamValue::Text("noise".into())),
+                ("noise_rms".into(), ParamValue::Number(noise_rms)),
+                ("start_s".into(), ParamValue::Number(start_s)),
+                ("runs".into(), ParamValue::Number(runs_with as f64)),
+            ],
+            channel: Some(name.clone()),
+            channels: vec![name.clone()],
+            explained: noise.added_var,
+            noise_var: noise.base_var,
+            delta_bic: noise.delta_bic,
+            heldout: faults::noise_part_gap(runs, tap, &noise, true),
+            selection: faults::noise_part_gap(runs, tap, &noise, false),
+            evidence: format!(
+                "{name}'s noise rises by {noise_rms:.4} RMS (own {:.4}) from t = {start_s:.2} s in {runs_with} run(s)",
+                noise.base_var.sqrt()
             ),
         });
     }
     shapes.into_iter().max_by(|a, b| a.delta_bic.total_cmp(&b.delta_bic))
 }
 
-/// The spikes of one innovation series: isolated samples, or bursts of up to
-/// [`SPIKE_MAX_BURST`] samples, beyond [`SPIKE_SIGMA`] robust standard deviations, with ordinary
-/// samples on both sides (a longer excursion is a lag or a step, not a spike); zero elsewhere.
+/// The spikes of one innovation series: single samples or bursts of up to [`SPIKE_MAX_BURST`]
+/// samples, each a stretch of samples beyond [`ORDINARY_SIGMA`] robust standard deviations that
+/// holds at least one beyond [`SPIKE_SIGMA`], with ordinary samples (within
+/// [`ORDINARY_SIGMA`], or missing) on both sides; zero elsewhere. A longer excursion is a lag or
+/// a step, not a spike; one at the run's first or last sample has no neighbour on that side (the
+/// pressure filter's first innovations are its start-up, not a reading).
 fn spike_column(nu: &[f64], robust_sigma: f64) -> Vec<f64> {
-    let big = |idx: usize| nu[idx].is_finite() && nu[idx].abs() > SPIKE_SIGMA * robust_sigma;
-    let quiet = |idx: Option<usize>| idx.is_none_or(|i| !(nu[i].is_finite() && nu[i].abs() > 3.0 * robust_sigma));
+    let beyond = |idx: usize, sigmas: f64| nu[idx].is_finite() && nu[idx].abs() > sigmas * robust_sigma;
     let mut out = vec![0.0; nu.len()];
     let mut idx = 0;
     while idx < nu.len() {
-        if !big(idx) {
+        if !beyond(idx, ORDINARY_SIGMA) {
             idx += 1;
             continue;
         }
         let start = idx;
-        while idx < nu.len() && big(idx) {
+        while idx < nu.len() && beyond(idx, ORDINARY_SIGMA) {
             idx += 1;
         }
-        let next = (idx < nu.len()).then_some(idx);
-        if idx - start <= SPIKE_MAX_BURST && quiet(start.checked_sub(1)) && quiet(next) {
+        // Inside the run: an excursion at either end has no ordinary sample on that side to
+        // tell it from the filter's start-up or the record's end.
+        let inside = start > 0 && idx < nu.len();
+        if inside && idx - start <= SPIKE_MAX_BURST && (start..idx).any(|i| beyond(i, SPIKE_SIGMA)) {
             out[start..idx].copy_from_slice(&nu[start..idx]);
         }
     }
     out
+}
+
+/// The spikes (single samples or bursts) in a spike column: its stretches of non-zero values.
+fn spike_events(column: &[f64]) -> usize {
+    column.iter().enumerate().filter(|(i, v)| **v != 0.0 && (*i == 0 || column[i - 1] == 0.0)).count()
 }
 
 /// Upper tail probability of `|N(0, 1)| > z`.

@@ -168,7 +168,7 @@ fn a_spike_is_strictly_beyond_the_threshold() {
 #[test]
 fn a_burst_longer_than_the_limit_is_no_spike() {
     let burst = |length: usize| {
-        let mut nu = vec![0.0; 40];
+        let mut nu = vec![0.0; 100];
         nu[10..10 + length].fill(2.0 * SPIKE_SIGMA);
         spike_column(&nu, 1.0)
     };
@@ -176,25 +176,44 @@ fn a_burst_longer_than_the_limit_is_no_spike() {
     assert!(burst(SPIKE_MAX_BURST + 1).iter().all(|v| *v == 0.0));
 }
 
-/// A spike needs ordinary neighbours: a neighbour beyond 3 sigma makes it part of a larger
-/// excursion (dropped), one at exactly 3 sigma, a missing one, or none (the ends) is
-/// ordinary.
+/// A spike needs ordinary neighbours: the samples beyond 3 sigma next to one beyond the spike
+/// threshold belong to it (a burst, kept whole), and the burst ends at an ordinary sample (at
+/// exactly 3 sigma) or a missing one; one at the run's first or last sample has no neighbour
+/// there (the filter's start-up: dropped); stretched beyond `SPIKE_MAX_BURST` samples by its
+/// neighbours it is a larger excursion (dropped).
 #[test]
 fn a_spike_needs_ordinary_neighbours() {
     let with_neighbour = |neighbour: f64| {
         let mut nu = vec![0.0; 20];
         nu[10] = 2.0 * SPIKE_SIGMA;
         nu[9] = neighbour;
-        spike_column(&nu, 1.0)[10]
+        let column = spike_column(&nu, 1.0);
+        (column[9], column[10])
     };
-    assert_eq!(with_neighbour(3.0 + 1e-9), 0.0);
-    assert_eq!(with_neighbour(-3.0 - 1e-9), 0.0);
-    assert_eq!(with_neighbour(3.0), 2.0 * SPIKE_SIGMA);
-    assert_eq!(with_neighbour(f64::NAN), 2.0 * SPIKE_SIGMA);
+    assert_eq!(with_neighbour(3.0 + 1e-9), (3.0 + 1e-9, 2.0 * SPIKE_SIGMA));
+    assert_eq!(with_neighbour(-3.0 - 1e-9), (-3.0 - 1e-9, 2.0 * SPIKE_SIGMA));
+    assert_eq!(with_neighbour(3.0), (0.0, 2.0 * SPIKE_SIGMA));
+    assert_eq!(with_neighbour(f64::NAN), (0.0, 2.0 * SPIKE_SIGMA));
     let mut ends = vec![0.0; 10];
     ends[0] = 10.0;
     ends[9] = -10.0;
-    assert_eq!(spike_column(&ends, 1.0), ends);
+    assert!(spike_column(&ends, 1.0).iter().all(|v| *v == 0.0));
+    let mut excursion = vec![0.0; 100];
+    excursion[10..10 + SPIKE_MAX_BURST].fill(4.0);
+    excursion[30] = 2.0 * SPIKE_SIGMA;
+    assert_eq!(spike_column(&excursion, 1.0), excursion, "a burst of the longest length");
+    excursion[10 + SPIKE_MAX_BURST] = 4.0;
+    assert!(spike_column(&excursion, 1.0).iter().all(|v| *v == 0.0), "one sample longer");
+}
+
+/// A burst counts as one spike: two bursts and a single sample are three.
+#[test]
+fn a_burst_is_one_spike() {
+    let mut nu = vec![0.0; 100];
+    nu[10..20].fill(10.0);
+    nu[40] = -10.0;
+    nu[60..90].fill(10.0);
+    assert_eq!(spike_events(&spike_column(&nu, 1.0)), 3);
 }
 
 /// Missing innovations are never spikes, and with no spread at all (no values: infinite
@@ -499,4 +518,104 @@ fn a_lag_of_every_channel_is_not_an_innovation_finding() {
     let every: &'static [usize] = &[0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11];
     let run = lagged(11, every, lag_grid(HZ)[10]);
     assert!(lag_findings(std::slice::from_ref(&run), TAPS).is_empty());
+}
+
+/// One channel's reading with `fault(t_s, pressure)` added, the others healthy.
+fn faulty(seed: u64, tap_faulty: usize, fault: impl Fn(f64, f64) -> f64) -> RunStreams {
+    recording(seed, move |tap, idx, noise| {
+        let (t_s, p) = (idx as f64 / HZ, pressure(tap, idx as f64 / HZ, 0.0));
+        p + noise + if tap == tap_faulty { fault(t_s, p) } else { 0.0 }
+    })
+}
+
+/// cp04 drifts by 0.02 per second from 1.5 s: a drift fault of cp04 at that rate, from about
+/// 1.5 s (within a selection block), decisive.
+#[test]
+fn a_drifting_channel_is_named_drift_with_its_rate() {
+    let run = faulty(20, 3, |t_s, _| if t_s >= 1.5 { 0.02 * (t_s - 1.5) } else { 0.0 });
+    let finding = fault_finding(std::slice::from_ref(&run), 3, TAPS).expect("a finding");
+    assert_eq!(text(&finding, "mode"), "drift", "{finding:?}");
+    assert_eq!(finding.channel.as_deref(), Some("cp04"));
+    assert!((number(&finding, "rate_per_s") - 0.02).abs() < 0.002, "{finding:?}");
+    assert!((number(&finding, "start_s") - 1.5).abs() < 0.4, "{finding:?}");
+    assert!(qualifies(&finding), "{finding:?}");
+}
+
+/// cp06 reads 1.1 times the pressure from 1 s: a gain fault of cp06 of 1.1.
+#[test]
+fn a_wrong_gain_is_named_with_its_gain() {
+    let run = faulty(21, 5, |t_s, p| if t_s >= 1.0 { 0.1 * p } else { 0.0 });
+    let finding = fault_finding(std::slice::from_ref(&run), 5, TAPS).expect("a finding");
+    assert_eq!(text(&finding, "mode"), "gain", "{finding:?}");
+    assert_eq!(finding.channel.as_deref(), Some("cp06"));
+    assert!((number(&finding, "gain") - 1.1).abs() < 0.01, "{finding:?}");
+    assert!((number(&finding, "start_s") - 1.0).abs() < 0.4, "{finding:?}");
+    assert!(qualifies(&finding), "{finding:?}");
+}
+
+/// cp08's noise grows fourfold in RMS (0.04 added) from 2 s: a noise fault with `noise_rms`
+/// near 0.04 (the added noise's RMS), from about 2 s.
+#[test]
+fn extra_noise_from_an_onset_is_named_noise() {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(22);
+    let extra = Normal::new(0.0, 4.0 * NOISE).expect("a valid deviation");
+    let added: Vec<f64> = (0..N).map(|_| extra.sample(&mut rng)).collect();
+    let run = recording(23, |tap, idx, noise| {
+        healthy(tap, idx, noise) + if tap == 7 && idx >= 2000 { added[idx] } else { 0.0 }
+    });
+    let finding = fault_finding(std::slice::from_ref(&run), 7, TAPS).expect("a finding");
+    assert_eq!(text(&finding, "mode"), "noise", "{finding:?}");
+    assert_eq!(finding.channel.as_deref(), Some("cp08"));
+    assert!((number(&finding, "noise_rms") - 4.0 * NOISE).abs() < 0.4 * NOISE, "{finding:?}");
+    assert!((number(&finding, "start_s") - 2.0).abs() < 0.2, "{finding:?}");
+    assert!(qualifies(&finding), "{finding:?}");
+}
+
+/// Bursts of thirty samples of 20 sigma on cp09 (ordinary samples around them), one every
+/// 0.8 s: a spike fault of cp09 counting each burst once.
+#[test]
+fn a_burst_of_thirty_samples_is_a_spike() {
+    let starts: Vec<usize> = (0..6).map(|k| 300 + 800 * k).collect();
+    let run = recording(24, |tap, idx, noise| {
+        let in_burst = starts.iter().any(|&s| (s..s + 30).contains(&idx));
+        healthy(tap, idx, noise) + if tap == 8 && in_burst { 20.0 * NOISE } else { 0.0 }
+    });
+    let finding = fault_finding(std::slice::from_ref(&run), 8, TAPS).expect("a finding");
+    assert_eq!(text(&finding, "mode"), "spike", "{finding:?}");
+    assert_eq!(finding.channel.as_deref(), Some("cp09"));
+    assert!((number(&finding, "spike_rate_hz") - 6.0 / DURATION_S).abs() < 1e-12, "{finding:?}");
+    assert!((number(&finding, "start_s") - 0.3).abs() < 1e-9, "{finding:?}");
+    assert!(qualifies(&finding), "{finding:?}");
+}
+
+/// Each of three runs with a level of its own on cp02 (the pressure model's per-run error,
+/// of either sign): no bias of cp02 qualifies.
+#[test]
+fn a_bias_that_differs_from_run_to_run_is_no_fault() {
+    let runs: Vec<RunStreams> =
+        [0.03, -0.02, 0.05].iter().enumerate().map(|(k, level)| faulty(30 + k as u64, 1, move |_, _| *level)).collect();
+    let finding = fault_finding(&runs, 1, TAPS);
+    assert!(finding.as_ref().is_none_or(|f| text(f, "mode") != "bias" || !qualifies(f)), "{finding:?}");
+}
+
+/// cp08 noisier from the start of the run (0.03 added, three times its own): no clean stretch of
+/// its own to compare with, so it is judged against the other channels, and named noise; a
+/// channel only 1.3 times as noisy as the others (transducers differ) is not.
+#[test]
+fn extra_noise_from_the_start_is_named_against_the_other_channels() {
+    let with_added = |seed: u64, rms: f64| {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let extra = Normal::new(0.0, rms).expect("a valid deviation");
+        let added: Vec<f64> = (0..N).map(|_| extra.sample(&mut rng)).collect();
+        recording(seed + 1, move |tap, idx, noise| healthy(tap, idx, noise) + if tap == 7 { added[idx] } else { 0.0 })
+    };
+    let run = with_added(25, 3.0 * NOISE);
+    let finding = fault_finding(std::slice::from_ref(&run), 7, TAPS).expect("a finding");
+    assert_eq!(text(&finding, "mode"), "noise", "{finding:?}");
+    assert!((number(&finding, "noise_rms") - 3.0 * NOISE).abs() < 0.3 * NOISE, "{finding:?}");
+    assert!(number(&finding, "start_s") < 0.01, "{finding:?}");
+    assert!(qualifies(&finding), "{finding:?}");
+    let slightly = with_added(27, (1.3_f64 * 1.3 - 1.0).sqrt() * NOISE);
+    let finding = fault_finding(std::slice::from_ref(&slightly), 7, TAPS);
+    assert!(finding.as_ref().is_none_or(|f| text(f, "mode") != "noise" || !qualifies(f)), "{finding:?}");
 }
