@@ -320,12 +320,12 @@ const FROZEN_ONSET_S: f64 = 0.01;
 ///
 /// Where: a fault that comes and goes (a loose connector, a tube that clears) is not
 /// predictable in time, so the fault acts where the training part's interval reaches into the
-/// part and wherever the same detector ([`best_interval_over`], its thresholds and the
+/// part and wherever the same detector (`best_interval_over`, its thresholds and the
 /// innovation's autocorrelation time `tau` fixed on the training part) finds it in the part.
 /// Running a fixed detector fits nothing. How much: nothing is estimated on the part. A stuck
 /// channel reads its frozen value, the training one when the
 /// interval continues the run's training interval, else the reading at the onset the detector
-/// names (the mean of its first [`FROZEN_ONSET_S`]), the value it froze at. The innovation is
+/// names (the mean of its first `FROZEN_ONSET_S`), the value it froze at. The innovation is
 /// the reading less the filter's expectation, so a stuck channel's predicted innovation is the
 /// frozen value less the expectation. A healthy channel gives no interval and no shrink; a
 /// level that differs in the part is not re-fitted, so the part's gap shows it.
@@ -451,7 +451,7 @@ impl Form {
         }
     }
 
-    /// The reported parameter from the fitted coefficient of [`regressor`]: a gain `g` adds
+    /// The reported parameter from the fitted coefficient of `regressor`: a gain `g` adds
     /// `(g - 1)` of the pressure, so `g = 1 + beta`.
     #[must_use]
     pub fn reported(self, beta: f64) -> f64 {
@@ -601,7 +601,7 @@ const AGREEMENT_FACTOR: f64 = 2.0;
 pub struct Shared {
     /// The form.
     pub form: Form,
-    /// The shared coefficient of [`regressor`] (the reported parameter is
+    /// The shared coefficient of `regressor` (the reported parameter is
     /// [`Form::reported`]).
     pub beta: f64,
     /// Per run, the onset time found on the training part, s (`None`: the run has no fault
@@ -660,7 +660,7 @@ fn column(run: &RunStreams, tap: usize, form: Form, onset_s: Option<f64>) -> Vec
 /// each run takes the onset that the coefficient fits best (none unless decisive in that run),
 /// and the coefficient is re-fitted over the runs' faulty samples, until the onsets hold. The
 /// fault is one value: a run whose own coefficient is decisive but disagrees with the shared
-/// one by more than [`AGREEMENT_FACTOR`] (or in sign) refutes it.
+/// one by more than `AGREEMENT_FACTOR` (or in sign) refutes it.
 #[must_use]
 pub fn fit_shared(runs: &[RunStreams], tap: usize, form: Form, tau: f64) -> Option<Shared> {
     let scans: Vec<Option<RunScan>> = runs.iter().map(|run| RunScan::new(run, tap, run.fit_samples(), tau)).collect();
@@ -714,7 +714,7 @@ pub fn fit_shared(runs: &[RunStreams], tap: usize, form: Form, tau: f64) -> Opti
 /// selection blocks or the held-out part), with nothing fitted on the part: the coefficient
 /// is the training one; a run whose training part found the onset keeps it (the fault lasts
 /// to the run's end), and in a run whose training part had none the same detector with the
-/// coefficient fixed ([`RunScan::onset_for`], its threshold and `tau` from training) looks for
+/// coefficient fixed (`RunScan::onset_for`, its threshold and `tau` from training) looks for
 /// an onset in the part (a fault may begin at any moment, the held-out part's too). Choosing
 /// an onset with everything else fixed fits nothing; a healthy part gives none, and no shrink.
 #[must_use]
@@ -847,9 +847,9 @@ fn mean_after(d: &[(f64, f64)], t0: f64) -> Option<(f64, usize)> {
 /// own variance is the median over the runs of the variance before the onset; a run without a
 /// rise inside it has the fault from its start when its whole variance exceeds that
 /// decisively. The added variance is one value for every run (pooled over the faulty samples);
-/// as for the shared forms ([`AGREEMENT_FACTOR`]) every faulty run's own added variance must
+/// as for the shared forms (`AGREEMENT_FACTOR`) every faulty run's own added variance must
 /// agree with it. A channel noisier from the start of every run has no clean run of its own
-/// to compare with: it is judged against the other channels ([`noisier_than_the_others`]).
+/// to compare with: it is judged against the other channels (`noisier_than_the_others`).
 /// `n_taps` is the number of channels.
 #[must_use]
 pub fn fit_noise(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Noise> {
@@ -918,7 +918,7 @@ pub fn fit_noise(runs: &[RunStreams], tap: usize, n_taps: usize) -> Option<Noise
 /// A channel noisier than the other channels of the scanner from the start of every run: its
 /// variance (`own`, of squared differences `diffs` per run) against the median of the others'
 /// (each the median over the runs), `(reference, evidence)` if it exceeds
-/// [`AGREEMENT_FACTOR`] times the reference decisively. Channels of one scanner agree on their
+/// `AGREEMENT_FACTOR` times the reference decisively. Channels of one scanner agree on their
 /// noise within that factor (transducers of one kind); a channel beyond it has noise added.
 /// The evidence is against the most a healthy channel may have, the factor times the
 /// reference, less the cost of the added variance.

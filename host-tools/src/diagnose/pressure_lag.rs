@@ -419,7 +419,7 @@ fn minimise(mut f: impl FnMut(f64) -> f64, range: (f64, f64)) -> f64 {
 /// other channels hold the filter.
 ///
 /// The time constant and the balance's weights on the taps are fitted on the training part
-/// only; the selection and held-out parts are judged with both fixed ([`part_check`]).
+/// only; the selection and held-out parts are judged with both fixed (`part_check`).
 #[must_use]
 pub fn finding(runs: &[RunStreams], reference: impl Into<Reference>) -> Option<SensorFinding> {
     let reference = reference.into();
