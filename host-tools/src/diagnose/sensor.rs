@@ -70,19 +70,40 @@ pub fn channel_name(tap: usize) -> String {
     format!("cp{:02}", tap + 1)
 }
 
-/// Every sensor finding, strongest first. `reference` is the sim's own alignment of the taps
-/// with the balance and its scatter ([`super::pressure_lag::finding`]).
+/// Every sensor finding, strongest first ([`scan`]'s ranked findings).
 #[must_use]
 pub fn findings(runs: &[RunStreams], reference: impl Into<super::pressure_lag::Reference>) -> Vec<SensorFinding> {
+    scan(runs, reference).ranked
+}
+
+/// What the sensor families find.
+#[derive(Debug, Clone, Default)]
+pub struct Findings {
+    /// Every finding, strongest first.
+    pub ranked: Vec<SensorFinding>,
+    /// A lag of each channel alone, at its best time constant, judged on what the filter
+    /// without the channel expects of it: not named, the floors of a lag of any set of channels
+    /// in the sim's signature (keyed by [`channel_lag_key`]). What the family finds on each
+    /// channel of data without a lag is the pressure model's own error there; the family's
+    /// choice of a set is made on the channels that stand out, so the set the sim's own data
+    /// chose says nothing of the others.
+    pub channel_lags: Vec<SensorFinding>,
+}
+
+/// Every sensor finding, and the lag of each channel alone. `reference` is the sim's own
+/// alignment of the taps with the balance and its scatter ([`super::pressure_lag::finding`]).
+#[must_use]
+pub fn scan(runs: &[RunStreams], reference: impl Into<super::pressure_lag::Reference>) -> Findings {
     let reference = reference.into();
     let reference_tau_s = reference.tau_s;
-    let n_taps = runs.first().map_or(0, |run| run.cp.len());
+    let Some(first) = runs.first().filter(|run| !run.cp.is_empty()) else { return Findings::default() };
+    let (n_taps, grid) = (first.cp.len(), lag_grid(first.sample_hz));
+    let alone: Judged<'_> =
+        runs.iter().map(|run| run.innovation_alone.iter().take(n_taps).map(Vec::as_slice).collect()).collect();
+    let best_alone = best_lags(runs, &alone, &grid, n_taps);
     let mut out = Vec::new();
-    if n_taps == 0 {
-        return out;
-    }
     let mut alignment = super::pressure_lag::finding(runs, reference);
-    let mut some = lag_findings(runs, n_taps);
+    let mut some = lag_findings(runs, n_taps, &alone, &best_alone, &grid);
     // A lag of some channels shifts the alignment of all twelve too, and a lag of every channel
     // can leave some standing out in the innovations: the balance, which reads the pressures
     // without lag, tells the two apart. Only a lag the alignment finds at all (the least effect
@@ -100,7 +121,7 @@ pub fn findings(runs: &[RunStreams], reference: impl Into<super::pressure_lag::R
     out.extend(some);
     out.extend((0..n_taps).filter_map(|tap| fault_finding(runs, tap, n_taps)));
     out.sort_by(|a, b| strength(b).total_cmp(&strength(a)));
-    out
+    Findings { ranked: out, channel_lags: channel_lags(runs, &alone, &best_alone, &grid) }
 }
 
 impl SensorFinding {
@@ -207,20 +228,20 @@ const MIN_REFERENCE_TAPS: usize = 3;
 /// each other channel on the filter without the group and itself, the typical channel is the
 /// median outside the group, until the group holds. A lag common to most channels is the
 /// alignment's ([`super::pressure_lag`]): the others then expect a lagged pressure too.
-fn lag_findings(runs: &[RunStreams], n_taps: usize) -> Vec<SensorFinding> {
-    let Some(sample_hz) = runs.first().map(|run| run.sample_hz) else {
-        return Vec::new();
-    };
-    let grid = lag_grid(sample_hz);
-    let alone: Judged<'_> =
-        runs.iter().map(|run| run.innovation_alone.iter().take(n_taps).map(Vec::as_slice).collect()).collect();
-    let mut lagged = standing_out(&best_lags(runs, &alone, &grid, n_taps), &vec![false; n_taps]);
+fn lag_findings<'a>(
+    runs: &'a [RunStreams],
+    n_taps: usize,
+    alone: &Judged<'a>,
+    best_alone: &[Option<(usize, f64)>],
+    grid: &[f64],
+) -> Vec<SensorFinding> {
+    let mut lagged = standing_out(best_alone, &vec![false; n_taps]);
     let group_of = |lagged: &[(usize, usize)]| -> Vec<bool> {
         (0..n_taps).map(|tap| lagged.iter().any(|(member, _)| *member == tap)).collect()
     };
     let refine = |group: Vec<bool>| {
         let innovations = without_group(runs, &group);
-        let best = { best_lags(runs, &judged(&innovations), &grid, n_taps) };
+        let best = { best_lags(runs, &judged(&innovations), grid, n_taps) };
         (group, innovations, best)
     };
     let too_many = |lagged: &[(usize, usize)]| lagged.len() + MIN_REFERENCE_TAPS > n_taps;
@@ -251,7 +272,7 @@ fn lag_findings(runs: &[RunStreams], n_taps: usize) -> Vec<SensorFinding> {
             lagged = lagged.iter().filter_map(|(tap, _)| best[*tap].map(|(tau_idx, _)| (*tap, tau_idx))).collect();
             judged(innovations)
         }
-        None => alone,
+        None => alone.clone(),
     };
     if lagged.is_empty() {
         return Vec::new();
@@ -273,31 +294,28 @@ fn lag_findings(runs: &[RunStreams], n_taps: usize) -> Vec<SensorFinding> {
     vec![finding]
 }
 
-/// The key of a lag of `channel` alone in the sim's signature ([`channel_lags`]).
+/// The key of a lag of `channel` alone in the sim's signature ([`Findings::channel_lags`]).
 #[must_use]
 pub fn channel_lag_key(channel: &str) -> String {
     format!("{}:{channel}:alone", Effect::PressureLag)
 }
 
-/// A lag of each channel alone, at its best time constant, judged on what the filter without
-/// the channel expects of it: what the family finds on each channel of data without a lag is
-/// the pressure model's own error there, the floor of a lag of any set of channels (the
-/// family's choice of a set is made on the channels that stand out, so the set the sim's own
-/// data chose says nothing of the others). Keyed by [`channel_lag_key`].
-#[must_use]
-pub fn channel_lags(runs: &[RunStreams]) -> Vec<SensorFinding> {
-    let Some(first) = runs.first() else { return Vec::new() };
-    let (n_taps, grid) = (first.cp.len(), lag_grid(first.sample_hz));
-    let alone: Judged<'_> =
-        runs.iter().map(|run| run.innovation_alone.iter().take(n_taps).map(Vec::as_slice).collect()).collect();
-    best_lags(runs, &alone, &grid, n_taps)
-        .into_iter()
+/// A lag of each channel alone at its best time constant `best_alone`, judged on `alone`
+/// ([`Findings::channel_lags`]).
+fn channel_lags(
+    runs: &[RunStreams],
+    alone: &Judged<'_>,
+    best_alone: &[Option<(usize, f64)>],
+    grid: &[f64],
+) -> Vec<SensorFinding> {
+    best_alone
+        .iter()
         .enumerate()
         .filter_map(|(tap, best)| {
-            let (tau_idx, _) = best?;
-            let segments = segments_judged(runs, &alone, tap);
+            let (tau_idx, _) = (*best)?;
+            let segments = segments_judged(runs, alone, tap);
             let columns: Vec<Vec<Vec<f64>>> =
-                runs.iter().zip(&alone).map(|(run, nu)| vec![lag_column(run, nu[tap], tap, grid[tau_idx])]).collect();
+                runs.iter().zip(alone).map(|(run, nu)| vec![lag_column(run, nu[tap], tap, grid[tau_idx])]).collect();
             let fit = regression::fit_through_origin(&segments, &columns)?;
             Some(lag_finding(&segments, &columns, &fit, &[(tap, grid[tau_idx])], 2))
         })

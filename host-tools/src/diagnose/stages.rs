@@ -249,14 +249,13 @@ pub(super) fn sensor_selected_to_noise(finding: &SensorFinding) -> f64 {
 
 impl SensorAttribution {
     pub(super) fn run(streams: &Streams, floor: &Signature) -> Self {
-        let findings = sensor::findings(
+        let sensor::Findings { ranked: findings, channel_lags } = sensor::scan(
             &streams.runs,
             pressure_lag::Reference {
                 tau_s: floor.pressure_alignment_s.unwrap_or(0.0),
                 scatter_s: floor.pressure_alignment_scatter_s.unwrap_or(0.0),
             },
         );
-        let channel_lags = sensor::channel_lags(&streams.runs);
         let named = findings
             .iter()
             .filter(|f| Self::qualifies(f, floor))
@@ -322,7 +321,7 @@ impl SensorAttribution {
 
     /// The floor of a finding: what the same finding removed on the sim's own data. A lag of
     /// some channels is a choice among 4095 sets, and the signature holds the one its own data
-    /// chose; what a lag of each channel alone removed there ([`sensor::channel_lags`]) is the
+    /// chose; what a lag of each channel alone removed there ([`sensor::Findings::channel_lags`]) is the
     /// floor of any set, as the mean over its channels (a set's strength is its mean per
     /// sample over its channels).
     pub(super) fn floor_of(finding: &SensorFinding, floor: &Signature) -> f64 {

@@ -446,7 +446,7 @@ fn a_lag_of_one_channel_is_found_on_that_channel() {
     let grid = lag_grid(HZ);
     let tau_s = grid[10];
     let run = lagged(9, &[4], tau_s);
-    let found = lag_findings(std::slice::from_ref(&run), TAPS);
+    let found = lags_of(std::slice::from_ref(&run), TAPS);
     assert_eq!(found.len(), 1);
     let finding = &found[0];
     assert_eq!(finding.effect, Effect::PressureLag);
@@ -464,7 +464,7 @@ fn a_lag_of_one_channel_is_found_on_that_channel() {
 fn a_lag_of_some_channels_names_exactly_those_channels() {
     let grid = lag_grid(HZ);
     let run = lagged(10, &[1, 4, 6, 9, 11], grid[12]);
-    let found = lag_findings(std::slice::from_ref(&run), TAPS);
+    let found = lags_of(std::slice::from_ref(&run), TAPS);
     assert_eq!(found.len(), 1);
     let finding = &found[0];
     assert_eq!(finding.channel, None);
@@ -487,7 +487,7 @@ fn a_deviation_slower_than_any_lag_searched_is_no_lag() {
         let (unlagged, lagged) = (pressure(tap, t_s, 0.0), pressure(tap, t_s, tau_s));
         unlagged + if tap == 4 { 0.2 * (lagged - unlagged) } else { 0.0 } + noise
     });
-    let found = lag_findings(std::slice::from_ref(&run), TAPS);
+    let found = lags_of(std::slice::from_ref(&run), TAPS);
     assert!(found.iter().all(|finding| !qualifies(finding)), "{found:?}");
 }
 
@@ -517,7 +517,7 @@ fn the_typical_channel_is_the_median_outside_the_group() {
 fn a_lag_of_every_channel_is_not_an_innovation_finding() {
     let every: &'static [usize] = &[0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11];
     let run = lagged(11, every, lag_grid(HZ)[10]);
-    assert!(lag_findings(std::slice::from_ref(&run), TAPS).is_empty());
+    assert!(lags_of(std::slice::from_ref(&run), TAPS).is_empty());
 }
 
 /// One channel's reading with `fault(t_s, pressure)` added, the others healthy.
@@ -618,4 +618,14 @@ fn extra_noise_from_the_start_is_named_against_the_other_channels() {
     let slightly = with_added(27, (1.3_f64 * 1.3 - 1.0).sqrt() * NOISE);
     let finding = fault_finding(std::slice::from_ref(&slightly), 7, TAPS);
     assert!(finding.as_ref().is_none_or(|f| text(f, "mode") != "noise" || !qualifies(f)), "{finding:?}");
+}
+
+/// The lag of some channels as [`scan`] finds it, each channel first judged on the filter
+/// without it.
+fn lags_of(runs: &[RunStreams], n_taps: usize) -> Vec<SensorFinding> {
+    let grid = lag_grid(runs[0].sample_hz);
+    let alone: Judged<'_> =
+        runs.iter().map(|run| run.innovation_alone.iter().take(n_taps).map(Vec::as_slice).collect()).collect();
+    let best_alone = best_lags(runs, &alone, &grid, n_taps);
+    lag_findings(runs, n_taps, &alone, &best_alone, &grid)
 }
