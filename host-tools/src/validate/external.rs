@@ -17,6 +17,7 @@
 //! DIR/sealed/case-NNN.json {"id", "class", "form", "params", "channels", "ratio", "stream", "alpha_deg", "seed", ...}
 //! ```
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -88,6 +89,10 @@ struct Truth {
     class: String,
     #[serde(default)]
     channels: Vec<String>,
+    /// Each injected channel's own effect-to-noise ratio, where the campaign gives it (null for
+    /// a dead channel's infinite one).
+    #[serde(default)]
+    channel_ratios: BTreeMap<String, Option<f64>>,
     ratio: Option<f64>,
     #[serde(default)]
     alpha_deg: Vec<f64>,
@@ -197,6 +202,14 @@ pub fn run(dir: &Path, progress: &(dyn Fn() + Sync)) -> Result<Outcome, External
             ratio: truth.ratio,
             truth: String::from_utf8_lossy(&bytes).into_owned(),
             truth_sha256: hash,
+            required_channels: truth
+                .channels
+                .iter()
+                .filter(|channel| {
+                    truth.channel_ratios.get(*channel).is_none_or(|ratio| ratio.is_none_or(|ratio| ratio >= 1.0))
+                })
+                .cloned()
+                .collect(),
             truth_channels: truth.channels,
             verdict: diagnosed.verdict,
             named: diagnosed.named,

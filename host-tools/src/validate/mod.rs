@@ -114,6 +114,12 @@ pub struct CaseRecord {
     pub truth_sha256: String,
     /// The injected channels, for sensor effects (one for a fault; one, some or all for a lag).
     pub truth_channels: Vec<String>,
+    /// The injected channels that the diagnosis must name: those whose own effect-to-noise
+    /// ratio is at least one, where the truth gives a ratio per channel, else all of them. The
+    /// contract lets an effect below a ratio of one be missed (shared/spec/diagnosis.md, "The
+    /// verdict `none`"); a lag of ten channels with 5 ms on one of them may leave that one at
+    /// the noise floor.
+    pub required_channels: Vec<String>,
     /// The diagnosis's verdict.
     pub verdict: String,
     /// Named effects, most responsible first.
@@ -238,6 +244,7 @@ fn run_case(config: &CampaignConfig, id: usize, class: Option<Effect>, models: &
         ratio,
         truth,
         truth_sha256,
+        required_channels: truth_channels.clone(),
         truth_channels,
         verdict,
         named,
