@@ -17,7 +17,8 @@ pub(super) enum Decision {
 
 impl Decision {
     /// A sensor effect stronger than any balance effect wins; named balance effects win unless
-    /// the probe still finds structure after them; a gap beyond the sim's own, or structure in
+    /// the probe still finds structure after them or they leave a gap the contract does not
+    /// let pass ([`ProbeResult::gap_left`]); a gap beyond the sim's own, or structure in
     /// the remainder, is unattributed only when something predicts part of it out of sample
     /// (a bigger but unpredictable gap is the sim's own scatter from recording to recording,
     /// not an effect).
@@ -36,7 +37,7 @@ impl Decision {
             return Self::Sensor(Box::new(finding.clone()));
         }
         if !balance.named.is_empty() {
-            return if probe.remainder_structured { Self::Unattributed } else { Self::Balance };
+            return if probe.remainder_structured || probe.gap_left() { Self::Unattributed } else { Self::Balance };
         }
         // Nothing named: a gap is unattributed only where something predicts at least an effect
         // of half the noise RMS of it out of sample (the noise as the naming threshold counts it:

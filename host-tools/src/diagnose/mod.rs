@@ -50,7 +50,7 @@ pub use signature::{
     signature_beside,
 };
 use stages::*;
-pub use stages::{BalanceAttribution, GapSummary, ProbeResult, SensorAttribution, Streams};
+pub use stages::{BalanceAttribution, GapSummary, LeftGap, ProbeResult, SensorAttribution, Streams};
 
 /// Smallest effect the diagnosis names, as a ratio of its RMS to the stream's noise RMS: a
 /// smaller one is at the noise floor by definition. Its square is the explained mean square a
@@ -68,6 +68,26 @@ pub const MAX_REMAINDER_SHARE: f64 = 0.1;
 /// remainder before it counts: a twentieth of the noise variance, below which the probe's own
 /// estimation scatter lies (scaled, like the naming threshold, by the sim's own gap).
 pub const MIN_REMAINDER_TO_NOISE: f64 = 0.05;
+
+/// Largest gap the named balance effects may leave on the runs they act on, as a ratio of its
+/// RMS to the noise RMS (beyond the sim's own gap there), before the gap counts as
+/// unattributed. The contract lets an effect whose effect-to-noise ratio is below one be
+/// missed, and no more (shared/spec/diagnosis.md, "The verdict `none`"): a gap of at least
+/// the noise RMS that the named effects leave is a real gap that they do not explain, and
+/// "unattributed" is for "a real gap [that] no candidate explains" (the same contract, the
+/// three questions). An effect in a form its family spans leaves its noise; one that leaves
+/// the noise RMS again is some other effect that a candidate partly fits (a clipped balance
+/// taken for a slow flow state, an encoder's backlash for a resonance). A strong effect leaves
+/// more than the noise through the candidate's own imprecision (an inertial reaction of 18
+/// noise RMS, through the estimated acceleration, left 6), so the remainder must also be a
+/// share of the gap ([`MAX_REMAINDER_GAP_SHARE`]).
+pub const MAX_REMAINDER_GAP_TO_NOISE: f64 = 1.0;
+
+/// Largest share of the gap's RMS (beyond noise and the sim's own gap) that the named balance
+/// effects may leave and still explain it: half. Effects that remove less than half of a gap
+/// (a shrink below 0.5, in the contract's measure of how far the gap shrinks) do not explain
+/// it; they fit part of something else.
+pub const MAX_REMAINDER_GAP_SHARE: f64 = 0.5;
 
 /// How many standard errors a run's gap must exceed the sim's own floor by before it counts
 /// as a real gap (one-sided, about 2.3 % false alarms per run for a Gaussian scatter).

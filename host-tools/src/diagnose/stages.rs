@@ -182,6 +182,10 @@ pub struct ProbeResult {
     pub structure: f64,
     /// The remainder holds structure beyond what the named effect may leave.
     pub remainder_structured: bool,
+    /// The gap on the selection part of the runs the named effects act on, beyond the white
+    /// noise and the sim's own gap there, in noise variances: before them and after them (both 0
+    /// without a named effect).
+    pub remainder_gap: LeftGap,
 }
 
 impl ProbeResult {
@@ -215,7 +219,53 @@ impl ProbeResult {
             structure
                 >= (MIN_REMAINDER_TO_NOISE * noise_scale).max(MAX_REMAINDER_SHARE * balance.excess(top, streams, floor))
         });
-        Self { base, structure, remainder_structured }
+        let remainder_gap = LeftGap::of(streams, balance, floor);
+        Self { base, structure, remainder_structured, remainder_gap }
+    }
+
+    /// The named effects do not explain the gap: they leave at least the noise RMS and at
+    /// least half the gap's RMS ([`MAX_REMAINDER_GAP_TO_NOISE`], [`MAX_REMAINDER_GAP_SHARE`]).
+    pub(super) fn gap_left(&self) -> bool {
+        let LeftGap { before, after } = self.remainder_gap;
+        after >= MAX_REMAINDER_GAP_TO_NOISE * MAX_REMAINDER_GAP_TO_NOISE
+            && after >= MAX_REMAINDER_GAP_SHARE * MAX_REMAINDER_GAP_SHARE * before
+    }
+}
+
+/// The gap on the selection part of the runs the named balance effects act on, beyond the
+/// white noise and the sim's own gap (the signature's, per kind of run and angle of attack), in
+/// noise variances weighted by samples, before and after the named effects.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct LeftGap {
+    /// Before the named effects.
+    pub before: f64,
+    /// After them.
+    pub after: f64,
+}
+
+impl LeftGap {
+    fn of(streams: &Streams, balance: &BalanceAttribution, floor: &Signature) -> Self {
+        let runs = &streams.runs;
+        let touched: Vec<bool> =
+            (0..runs.len()).map(|idx| balance.named.iter().any(|p| p.fit.touched.get(idx) == Some(&true))).collect();
+        let beyond = |residuals: &[Vec<f64>]| -> f64 {
+            let segments = attribution::segments(runs, residuals);
+            let (mut sum, mut n) = (0.0, 0usize);
+            for ((segment, run), _) in segments.iter().zip(runs).zip(&touched).filter(|(_, touched)| **touched) {
+                let gap = regression::selection_gap(std::slice::from_ref(segment), &[Vec::new()], &[], &[true]);
+                if gap.n == 0 || !gap.mse_before.is_finite() {
+                    continue;
+                }
+                let own = floor.gap_of(run.kind.as_str(), run.alpha_deg).max(0.0);
+                sum += (streams.to_noise(gap.mse_before) - 1.0 - own) * gap.n as f64;
+                n += gap.n;
+            }
+            if n == 0 { 0.0 } else { (sum / n as f64).max(0.0) }
+        };
+        if balance.named.is_empty() {
+            return Self::default();
+        }
+        Self { before: beyond(&streams.residuals), after: beyond(&balance.remainder) }
     }
 }
 

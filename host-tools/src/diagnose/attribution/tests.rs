@@ -11,8 +11,8 @@ use crate::diagnose::result::Verdict;
 use crate::diagnose::sensor::{ParamValue, SensorFinding};
 use crate::diagnose::streams::synthetic_run;
 use crate::diagnose::{
-    BalanceAttribution, Decision, GapSummary, MIN_DELTA_BIC, MIN_EFFECT_TO_NOISE, ProbeResult, SensorAttribution,
-    Signature, Streams,
+    BalanceAttribution, Decision, GapSummary, LeftGap, MAX_REMAINDER_GAP_SHARE, MAX_REMAINDER_GAP_TO_NOISE,
+    MIN_DELTA_BIC, MIN_EFFECT_TO_NOISE, ProbeResult, SensorAttribution, Signature, Streams,
 };
 
 const HZ: f64 = 1000.0;
@@ -98,7 +98,7 @@ fn balance(first_round: Vec<Profiled>, named: Vec<Profiled>) -> BalanceAttributi
 }
 
 fn probe(structure: f64, remainder_structured: bool) -> ProbeResult {
-    ProbeResult { base: BTreeMap::new(), structure, remainder_structured }
+    ProbeResult { base: BTreeMap::new(), structure, remainder_structured, remainder_gap: LeftGap::default() }
 }
 
 fn no_sensor() -> SensorAttribution {
@@ -422,6 +422,25 @@ fn a_named_balance_effect_is_the_verdict_unless_structure_remains() {
     assert!(matches!(clean, Decision::Balance));
     assert_eq!(clean.verdict(), Verdict::Effect);
     assert_eq!(decide(&named, &probe(0.0, true), &no_sensor()).verdict(), Verdict::Unattributed);
+}
+
+/// A named balance effect that leaves both the noise RMS and half the gap's RMS on the runs
+/// it acts on does not explain the gap: `unattributed`. Less than the noise, or less than half
+/// of a strong gap, is the effect's.
+#[test]
+fn a_named_effect_that_leaves_the_noise_and_half_the_gap_is_unattributed() {
+    let top = profiled(&InertialTare, 2.0, 100.0);
+    let named = balance(vec![top.clone()], vec![top]);
+    let leaves =
+        |before: f64, after: f64| ProbeResult { remainder_gap: LeftGap { before, after }, ..probe(0.0, false) };
+    let noise = MAX_REMAINDER_GAP_TO_NOISE * MAX_REMAINDER_GAP_TO_NOISE;
+    let share = MAX_REMAINDER_GAP_SHARE * MAX_REMAINDER_GAP_SHARE;
+    let tiny = 2f64.powi(-30);
+    assert_eq!(decide(&named, &leaves(noise / share, noise), &no_sensor()).verdict(), Verdict::Unattributed);
+    assert!(matches!(decide(&named, &leaves(noise / share, noise - tiny), &no_sensor()), Decision::Balance));
+    // A gap of 336 noise variances that leaves 38: well beyond the noise, but a ninth of it.
+    assert!(matches!(decide(&named, &leaves(336.0, 38.0), &no_sensor()), Decision::Balance));
+    assert_eq!(decide(&named, &leaves(336.0, 84.0), &no_sensor()).verdict(), Verdict::Unattributed);
 }
 
 /// A named sensor effect wins only when stronger than the named balance effect (strictly:
