@@ -40,6 +40,17 @@ pub struct Profiled {
 }
 
 impl Profiled {
+    /// Whether the fitted gains are those of the effect its name stands for: an effect that
+    /// keeps the sim's static gain ([`super::candidates::BalanceCandidate::unit_gain`]) must fit
+    /// gains within [`super::candidates::UNIT_GAIN_RANGE`]. A "delay" of 3 ms at eleven times
+    /// the plant's moment is the derivative of that moment (a mode the blowing rings), not a
+    /// pneumatic line.
+    #[must_use]
+    pub fn plausible(&self) -> bool {
+        let (low, high) = super::candidates::UNIT_GAIN_RANGE;
+        !self.candidate.unit_gain() || self.fit.beta.iter().all(|gain| (low..=high).contains(gain))
+    }
+
     /// Mean square explained per touched training sample.
     #[must_use]
     pub fn explained(&self) -> f64 {

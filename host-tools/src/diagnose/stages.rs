@@ -113,6 +113,7 @@ impl BalanceAttribution {
         while named.len() < 3 {
             let Some(best) = round
                 .iter()
+                .filter(|p| p.plausible())
                 .find(|p| p.candidate.repeatable() || !named.iter().any(|n| n.candidate.name() == p.candidate.name()))
                 .cloned()
             else {

@@ -424,6 +424,24 @@ fn a_named_balance_effect_is_the_verdict_unless_structure_remains() {
     assert_eq!(decide(&named, &probe(0.0, true), &no_sensor()).verdict(), Verdict::Unattributed);
 }
 
+/// A delay or a lag keeps the plant's static gain: fitted at eleven times the plant's moment
+/// (or at less than half of it) it is not that effect; a gain of 0.7 is. A tare's gain is its
+/// size, free.
+#[test]
+fn a_delay_or_lag_far_from_unit_gain_is_not_plausible() {
+    use crate::diagnose::candidates::{ActuatorDelay, ActuatorLag, UNIT_GAIN_RANGE};
+    let with_gain = |candidate: Candidate, gain: f64| {
+        let mut p = profiled(candidate, 2.0, 100.0);
+        p.fit.beta = vec![gain];
+        p
+    };
+    assert!(with_gain(&ActuatorDelay, 0.7).plausible());
+    assert!(with_gain(&ActuatorLag, UNIT_GAIN_RANGE.1).plausible());
+    assert!(!with_gain(&ActuatorDelay, 11.26).plausible());
+    assert!(!with_gain(&ActuatorLag, 0.44).plausible());
+    assert!(with_gain(&InertialTare, 11.26).plausible());
+}
+
 /// A named balance effect that leaves both the noise RMS and half the gap's RMS on the runs
 /// it acts on does not explain the gap: `unattributed`. Less than the noise, or less than half
 /// of a strong gap, is the effect's.

@@ -68,6 +68,10 @@ impl BalanceCandidate for ActuatorDelay {
         true
     }
 
+    fn unit_gain(&self) -> bool {
+        true
+    }
+
     fn shapes(&self, sample_hz: f64, context: &Context<'_>) -> Vec<Shape> {
         let grid = log_grid(Self::delay_low_s(sample_hz), DELAY_MAX_S, Self::COARSE);
         Jets::choices(context)
@@ -141,6 +145,10 @@ impl BalanceCandidate for ActuatorLag {
 
     /// A lag per jet is named as one jet's, then the other's on the remainder.
     fn repeatable(&self) -> bool {
+        true
+    }
+
+    fn unit_gain(&self) -> bool {
         true
     }
 

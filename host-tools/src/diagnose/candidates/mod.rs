@@ -54,6 +54,14 @@ pub trait BalanceCandidate: Sync + fmt::Debug {
         false
     }
 
+    /// Whether the effect keeps the static gain of the sim's path it acts on: a transport delay
+    /// and a low-pass "of unit static gain" (shared/spec/diagnosis.md, What each name covers).
+    /// Its columns are then the path with the effect less the path without, and their gains
+    /// are about one ([`UNIT_GAIN_RANGE`]).
+    fn unit_gain(&self) -> bool {
+        false
+    }
+
     /// Whether the effect may be named again on the remainder after it was named: the contract
     /// allows several of it at once (one or more structural modes; a delay or a lag per jet).
     fn repeatable(&self) -> bool {
@@ -88,6 +96,13 @@ pub trait BalanceCandidate: Sync + fmt::Debug {
 
 /// A candidate (every one is a unit type, so a static reference).
 pub type Candidate = &'static dyn BalanceCandidate;
+
+/// Range of the gain of an effect that keeps the sim's static gain
+/// ([`BalanceCandidate::unit_gain`]): one, within a factor of two. The sim's plant is fitted on
+/// the rig's own recordings, so its static gain is known far better than that (the delays and
+/// lags named right on both tunnels fitted 0.7 to 1.4); a gain outside it is another effect
+/// that the columns happen to span.
+pub const UNIT_GAIN_RANGE: (f64, f64) = (0.5, 2.0);
 
 /// Every balance candidate.
 pub const ALL: [Candidate; 10] = [
