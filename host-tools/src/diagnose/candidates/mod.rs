@@ -187,6 +187,14 @@ pub enum Shape {
         /// ([`crate::diagnose::streams::MODE_DRIVE_CORNERS_HZ`]).
         drive_corner_hz: f64,
     },
+    /// A structural mode rung by a load no input records (buffet, the flow's own unsteadiness):
+    /// predicted one sample ahead from the residual's own past through the mode.
+    Ringing {
+        /// Natural frequency, Hz.
+        freq_hz: f64,
+        /// Damping ratio.
+        zeta: f64,
+    },
     /// A rate damping's law.
     Damping {
         /// How the moment grows with the rate.
@@ -422,6 +430,7 @@ impl Form {
             // Every step's time is profiled, in every run.
             Shape::Steps { count, runs } => count as usize * runs as usize,
             Shape::Mode { .. } => 3,
+            Shape::Ringing { .. } => 2,
         }
     }
 
@@ -436,7 +445,7 @@ impl Form {
             | Shape::SlowState { tau_s, .. }
             | Shape::Settle { tau_s } => Some(("tau_s", tau_s)),
             Shape::RateLimit { full_stroke_s } => Some(("full_stroke_s", full_stroke_s)),
-            Shape::Mode { freq_hz, .. } => Some(("freq_hz", freq_hz)),
+            Shape::Mode { freq_hz, .. } | Shape::Ringing { freq_hz, .. } => Some(("freq_hz", freq_hz)),
             Shape::Tare { corner_hz, .. } => match corner_hz {
                 Some(corner_hz) => Some(("corner_hz", corner_hz)),
                 None => None,
@@ -486,6 +495,11 @@ impl Form {
                 ("freq_hz", FormValue::Number(freq_hz)),
                 ("zeta", FormValue::Number(zeta)),
                 ("drive_corner_hz", FormValue::Number(drive_corner_hz)),
+            ],
+            Shape::Ringing { freq_hz, zeta } => vec![
+                ("freq_hz", FormValue::Number(freq_hz)),
+                ("zeta", FormValue::Number(zeta)),
+                ("drive", FormValue::Choice("unrecorded")),
             ],
             Shape::Tare { per_run, corner_hz } => {
                 let mut entries = vec![("per_run", FormValue::Flag(per_run))];
@@ -867,9 +881,10 @@ mod tests {
     fn a_family_summary_states_its_forms_and_ranges() {
         let context = test_context();
         let (forms, text) = family_summary(&BalanceResonance, 1000.0, &context);
-        assert_eq!(forms, 40 * 3 * 2);
+        assert_eq!(forms, 40 * (3 * 2 + 2));
         assert!(text.starts_with(BalanceResonance.regressors()), "{text}");
-        assert!(text.contains("zeta 0.0200 to 0.2500 (3 values)"), "{text}");
+        assert!(text.contains("zeta 0.0200 to 0.2500 (4 values)"), "{text}");
+        assert!(text.contains("drive: unrecorded"), "{text}");
         assert!(text.contains("freq_hz 4.0000 to 300.0000 (40 values)"), "{text}");
         let (forms, text) = family_summary(&RollDamping, 1000.0, &context);
         assert_eq!(forms, 6);

@@ -27,6 +27,30 @@ const RESONANCE_FINE: usize = 9;
 /// but one (the refinement tries every corner of [`MODE_DRIVE_CORNERS_HZ`] at the leading mode).
 const RESONANCE_CORNERS_COARSE: [f64; 2] = [MODE_DRIVE_CORNERS_HZ[1], MODE_DRIVE_CORNERS_HZ[3]];
 
+/// Damping ratios of the rung mode's grid ([`Shape::Ringing`]): the lightly damped part of the
+/// contract's range. A mode rung by a load no input records is told from the residual's other
+/// colour only by a narrow peak; a broad one (damping 0.3) is any coloured residual, and the
+/// recorded drives ([`Shape::Mode`]) keep the contract's whole range.
+const RINGING_DAMPING_COARSE: [f64; 2] = [0.02, 0.07];
+const RINGING_DAMPING: [f64; 6] = [0.005, 0.01, 0.02, 0.04, 0.07, 0.1];
+
+/// Width of the rung mode's band-pass over the mode's own, as damping ratios: a band as narrow
+/// as the mode turns the phase across the mode's band, and the last two samples then predict
+/// less of it (of a mode at 50 Hz, damping 0.07, under noise of a third of its RMS, the
+/// recursion predicted 0.91 of its variance through five times its width, 0.88 through three).
+const RINGING_BAND_WIDENING: f64 = 5.0;
+
+/// Least coefficient of variation of a rung mode's envelope (its power over two periods, along
+/// the run): a mode rung by a random load has a Rayleigh envelope, whose power varies as much
+/// as its mean (a coefficient of 1, less a little for the averaging); a tone from the rig (a
+/// fan, a pump: outside the vocabulary) holds its amplitude, and the band-pass's own noise
+/// leaves it a few hundredths. Half the random mode's is the boundary.
+const RINGING_MIN_ENVELOPE_CV: f64 = 0.5;
+
+/// Least power density of a rung mode's band over that of the bands an octave either side: a
+/// mode stands out of its neighbourhood by at least twice (3 dB).
+const RINGING_MIN_PEAK: f64 = 2.0;
+
 /// Knot spacings of the drift's piecewise-linear form, s: a zero that wanders (a random walk)
 /// rather than a smooth trend.
 pub const DRIFT_KNOT_SPACING_S: [f64; 2] = [4.0, 2.0];
@@ -40,8 +64,11 @@ const DRIFT_MAX_STEPS: u8 = 3;
 
 /// `balance_resonance`: a mode from [`Context::resonance_min_hz`] to 0.35 of the sample rate
 /// (at most 300 Hz), damping [`RESONANCE_DAMPING`], driven by the sim's load, the inertial load of
-/// the motion (the acceleration smoothed at one of [`MODE_DRIVE_CORNERS_HZ`]) and the blowing.
-/// Several modes are named one after the other on the remainder.
+/// the motion (the acceleration smoothed at one of [`MODE_DRIVE_CORNERS_HZ`]) and the blowing;
+/// or rung by a load no input records (the buffet of the flow: the contract's "excited by ...
+/// the aerodynamic load" holds the unsteady load the sim does not have), predicted from the
+/// residual's own past ([`Shape::Ringing`]). Several modes are named one after the other on the
+/// remainder.
 #[derive(Debug, Clone, Copy)]
 pub struct BalanceResonance;
 
@@ -62,7 +89,7 @@ pub struct BiasDrift;
 
 impl BalanceCandidate for BalanceResonance {
     fn regressors(&self) -> &'static str {
-        "(H - 1) of the sim's load, of the roll acceleration over q S b and of the plant's moment (the blowing), H a unit-gain mode"
+        "(H - 1) of the sim's load, of the roll acceleration over q S b and of the plant's moment (the blowing), H a unit-gain mode; or, for a mode rung by a load no input records, the mode's recursion on the residual's last two samples through a band-pass at the mode"
     }
 
     fn effect(&self) -> Option<Effect> {
@@ -87,14 +114,21 @@ impl BalanceCandidate for BalanceResonance {
                     shapes.push(Shape::Mode { freq_hz, zeta, drive_corner_hz });
                 }
             }
+            shapes.extend(RINGING_DAMPING_COARSE.map(|zeta| Shape::Ringing { freq_hz, zeta }));
         }
         shapes
     }
 
     fn refine(&self, best: &Shape, sample_hz: f64, context: &Context<'_>) -> Vec<Shape> {
-        let Shape::Mode { freq_hz, zeta, drive_corner_hz } = *best else { return Vec::new() };
         let (low, high) = Self::band_hz(sample_hz, context);
         let ratio = super::grid_ratio(low, high, RESONANCE_COARSE);
+        if let Shape::Ringing { freq_hz, .. } = *best {
+            return super::around(freq_hz, ratio, RESONANCE_FINE, low, high)
+                .into_iter()
+                .flat_map(|freq_hz| RINGING_DAMPING.map(|zeta| Shape::Ringing { freq_hz, zeta }))
+                .collect();
+        }
+        let Shape::Mode { freq_hz, zeta, drive_corner_hz } = *best else { return Vec::new() };
         let mut shapes: Vec<Shape> = MODE_DRIVE_CORNERS_HZ
             .iter()
             .filter(|corner| **corner != drive_corner_hz)
@@ -109,6 +143,9 @@ impl BalanceCandidate for BalanceResonance {
     }
 
     fn columns(&self, shape: &Shape, run: &RunStreams, _run_idx: usize, context: &Context<'_>) -> Vec<Vec<f64>> {
+        if let Shape::Ringing { freq_hz, zeta } = *shape {
+            return ringing_columns(run, freq_hz, zeta).to_vec();
+        }
         let Shape::Mode { freq_hz, zeta, drive_corner_hz } = *shape else { return Vec::new() };
         let dt_s = 1.0 / run.sample_hz;
         let load = run.cl_sim();
@@ -120,7 +157,10 @@ impl BalanceCandidate for BalanceResonance {
         mode_excess([&load, acceleration, &blowing], scale, freq_hz, zeta, dt_s).to_vec()
     }
 
-    fn params(&self, _shape: &Shape, beta: &[f64], _context: &Context<'_>, _columns: &[Vec<Vec<f64>>]) -> Params {
+    fn params(&self, shape: &Shape, beta: &[f64], _context: &Context<'_>, _columns: &[Vec<Vec<f64>>]) -> Params {
+        if matches!(shape, Shape::Ringing { .. }) {
+            return super::gains(&["gain_recursion"], beta);
+        }
         super::gains(&["gain_load", "gain_inertial", "gain_blowing"], beta)
     }
 }
@@ -206,6 +246,126 @@ fn drift_width(shape: &Shape, context: &Context<'_>) -> usize {
         Shape::Steps { count, .. } => usize::from(count),
         _ => 0,
     }
+}
+
+/// The column of a mode rung by an unrecorded load: the mode's own recursion on the run's
+/// residual through a band-pass at the mode ([`band_pass`], [`RINGING_BAND_WIDENING`] times the
+/// mode's damping), one and two samples back. A mode's response obeys its own second-order
+/// recursion whatever rings it, so its next sample follows from its last two (Box & Jenkins,
+/// Time Series Analysis, 1970, ch. 3: the AR(2) with complex roots); the band-pass keeps the
+/// mode's band of the residual and leaves out most of the white noise, and one gain is fitted.
+/// With the recursion's weights fitted freely instead, a tone anywhere in the band's skirt was
+/// predicted as well as a mode at its centre. Zero on a run whose band is no peak of the residual's spectrum
+/// ([`is_peak`]), whose band holds a steady tone ([`RINGING_MIN_ENVELOPE_CV`]), or without a
+/// finite residual.
+fn ringing_columns(run: &RunStreams, freq_hz: f64, zeta: f64) -> [Vec<f64>; 1] {
+    let n = run.len();
+    let zero = || [vec![0.0; n]];
+    let Some(first) = run.residual.iter().copied().find(|v| v.is_finite()) else { return zero() };
+    let held = crate::fit::signals::hold_missing(&run.residual, first);
+    let dt_s = 1.0 / run.sample_hz;
+    let width = (RINGING_BAND_WIDENING * zeta).min(0.5);
+    let band = band_pass(&held, freq_hz, width, dt_s);
+    if !is_peak(&held, &band, run, freq_hz, width) || envelope_cv(&band, run, freq_hz, width) < RINGING_MIN_ENVELOPE_CV
+    {
+        return zero();
+    }
+    // The mode's own recursion, its poles `exp((-zeta +- i sqrt(1 - zeta^2)) w dt)` (impulse
+    // invariance): `m[n] = 2 r cos(theta) m[n-1] - r^2 m[n-2]` for the mode left to itself.
+    let omega = std::f64::consts::TAU * freq_hz;
+    let radius = (-zeta * omega * dt_s).exp();
+    let theta = omega * (1.0 - zeta * zeta).sqrt() * dt_s;
+    let (a1, a2) = (2.0 * radius * theta.cos(), -radius * radius);
+    let predicted = (0..n)
+        .map(|i| match i {
+            0 => 0.0,
+            1 => a1 * band[0],
+            _ => a1 * band[i - 1] + a2 * band[i - 2],
+        })
+        .collect();
+    [predicted]
+}
+
+/// Whether the residual's band at `freq_hz` is a peak of its spectrum: its power density (the
+/// band's mean square over its width, which grows with the frequency at a fixed damping) at
+/// least [`RINGING_MIN_PEAK`] times that an octave below and an octave above (or at 0.45 of the
+/// sample rate). A mode is a peak; the colour of other effects (a lag, a slow state, the sim's
+/// own error) falls with the frequency, and is no mode however predictable it is.
+fn is_peak(held: &[f64], band: &[f64], run: &RunStreams, freq_hz: f64, width: f64) -> bool {
+    let dt_s = 1.0 / run.sample_hz;
+    let density = |values: &[f64], at_hz: f64| mean_square_on_fit(values, run) / at_hz;
+    let here = density(band, freq_hz);
+    let below_hz = 0.5 * freq_hz;
+    let above_hz = (2.0 * freq_hz).min(0.45 * run.sample_hz);
+    let below = density(&band_pass(held, below_hz, width, dt_s), below_hz);
+    let above = if above_hz > freq_hz * 1.2 { density(&band_pass(held, above_hz, width, dt_s), above_hz) } else { 0.0 };
+    here > 0.0 && here >= RINGING_MIN_PEAK * below.max(above)
+}
+
+/// Mean square of `values` over the run's fit samples past the first second (the band-passes'
+/// settling).
+fn mean_square_on_fit(values: &[f64], run: &RunStreams) -> f64 {
+    let settle = run.sample_hz.round() as usize;
+    let (sum, n) = run
+        .fit_samples()
+        .filter(|&i| i >= settle)
+        .fold((0.0, 0usize), |(sum, n), i| (sum + values[i] * values[i], n + 1));
+    if n == 0 { 0.0 } else { sum / n as f64 }
+}
+
+/// A band-pass of unit peak gain at `freq_hz`, `2 zeta w s / (s^2 + 2 zeta w s + w^2)` (bilinear
+/// transform, natural frequency pre-warped), started at rest.
+#[must_use]
+pub fn band_pass(values: &[f64], freq_hz: f64, zeta: f64, dt_s: f64) -> Vec<f64> {
+    let omega = 2.0 / dt_s * (std::f64::consts::PI * freq_hz * dt_s).tan();
+    let k = 2.0 / dt_s;
+    let two_zw = 2.0 * zeta * omega;
+    let a0 = k * k + two_zw * k + omega * omega;
+    let (b0, a1, a2) =
+        (two_zw * k / a0, (2.0 * omega * omega - 2.0 * k * k) / a0, (k * k - two_zw * k + omega * omega) / a0);
+    let (mut x1, mut x2, mut y1, mut y2) = (0.0, 0.0, 0.0, 0.0);
+    values
+        .iter()
+        .map(|&x| {
+            let y = b0 * (x - x2) - a1 * y1 - a2 * y2;
+            (x2, x1, y2, y1) = (x1, x, y1, y);
+            y
+        })
+        .collect()
+}
+
+/// Coefficient of variation of the band's power averaged over two periods of `freq_hz`, over
+/// the run's fit samples past the band-pass's settling (five of the mode's time constants,
+/// `1 / (zeta w)`, at least a second); 0 when the run is too short. The band is the one the
+/// form predicts from: the two free weights predict a tone anywhere in it, off its centre too
+/// (a tone at 15.2 Hz was predicted by the band at 11.5 Hz, whose centre holds only noise).
+fn envelope_cv(band: &[f64], run: &RunStreams, freq_hz: f64, zeta: f64) -> f64 {
+    let window = ((2.0 * run.sample_hz / freq_hz).round() as usize).max(2);
+    let settle_s = (5.0 / (zeta * std::f64::consts::TAU * freq_hz)).max(1.0);
+    let settle = (settle_s * run.sample_hz).round() as usize;
+    let samples: Vec<usize> = run.fit_samples().filter(|&i| i >= settle + window).collect();
+    // Non-overlapping windows of consecutive fit samples.
+    let mut powers = Vec::new();
+    let mut chunk = Vec::with_capacity(window);
+    for &i in &samples {
+        if chunk.last().is_some_and(|&last: &usize| last + 1 != i) {
+            chunk.clear();
+        }
+        chunk.push(i);
+        if chunk.len() == window {
+            powers.push(chunk.iter().map(|&j| band[j] * band[j]).sum::<f64>() / window as f64);
+            chunk.clear();
+        }
+    }
+    if powers.len() < 10 {
+        return 0.0;
+    }
+    let mean = powers.iter().sum::<f64>() / powers.len() as f64;
+    if mean <= 0.0 {
+        return 0.0;
+    }
+    let var = powers.iter().map(|p| (p - mean).powi(2)).sum::<f64>() / (powers.len() - 1) as f64;
+    var.sqrt() / mean
 }
 
 /// The times of up to `count` steps of the run's zero, s from its start: greedy binary
@@ -355,6 +515,55 @@ mod tests {
         }
     }
 
+    /// A mode at 50 Hz (damping 0.03) rung by white noise, under white measurement noise of
+    /// a third of its RMS: the rung form at the mode predicts most of it one sample ahead; a
+    /// steady tone of the same RMS in the band, or a residual coloured by a slow lag, gives the
+    /// form nothing to fit.
+    #[test]
+    fn a_randomly_rung_mode_is_predicted_from_its_past_but_a_tone_is_not() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        let (sample_hz, n, freq_hz, zeta) = (1000.0, 20_000, 50.0, 0.03);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let white = Normal::new(0.0, 1.0).unwrap();
+        let drive: Vec<f64> = (0..n).map(|_| white.sample(&mut rng)).collect();
+        let mode = resonator(&drive, freq_hz, zeta, 1.0 / sample_hz);
+        let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
+        let mode_rms = rms(&mode[2000..]);
+        let noise = Normal::new(0.0, mode_rms / 3.0).unwrap();
+        let mut run = synthetic_run(sample_hz, vec![vec![0.0; n]], vec![vec![0.0; n]]);
+        run.residual = mode.iter().map(|m| m + noise.sample(&mut rng)).collect();
+        let shape = Shape::Ringing { freq_hz, zeta };
+        let columns = BalanceResonance.columns(&shape, &run, 0, &test_context());
+        let target = &run.residual[2000..];
+        let cut: Vec<Vec<f64>> = columns.iter().map(|c| c[2000..].to_vec()).collect();
+        let beta = test_fit(&cut, target);
+        let left: Vec<f64> = target.iter().enumerate().map(|(i, r)| r - beta[0] * cut[0][i]).collect();
+        let removed = (rms(target).powi(2) - rms(&left).powi(2)) / rms(&mode[2000..]).powi(2);
+        assert!(removed > 0.7, "removed {removed} of the mode's variance");
+        // A mode's recursion at another frequency predicts little of it.
+        let off = BalanceResonance.columns(&Shape::Ringing { freq_hz: 35.0, zeta }, &run, 0, &test_context());
+        let off: Vec<f64> = off[0][2000..].to_vec();
+        let beta_off = test_fit(std::slice::from_ref(&off), target);
+        let left_off: Vec<f64> = target.iter().zip(&off).map(|(r, c)| r - beta_off[0] * c).collect();
+        let removed_off = (rms(target).powi(2) - rms(&left_off).powi(2)) / rms(&mode[2000..]).powi(2);
+        assert!(removed_off < 0.5 * removed, "35 Hz removed {removed_off}, 50 Hz {removed}");
+
+        let tone: Vec<f64> = (0..n)
+            .map(|i| mode_rms * 2f64.sqrt() * (std::f64::consts::TAU * freq_hz * i as f64 / sample_hz).sin())
+            .collect();
+        run.residual = tone.iter().map(|t| t + noise.sample(&mut rng)).collect();
+        let columns = BalanceResonance.columns(&shape, &run, 0, &test_context());
+        assert!(columns.iter().all(|c| c.iter().all(|v| *v == 0.0)), "a tone is no rung mode");
+
+        // Coloured noise (white through a 0.1 s lag, as a missing slow state leaves) is
+        // predictable from its past at 5 Hz too, but has no peak there.
+        let coloured = crate::fit::signals::first_order_lag(&drive, 0.1, 1.0 / sample_hz);
+        run.residual = coloured.iter().map(|c| c + noise.sample(&mut rng)).collect();
+        let columns = BalanceResonance.columns(&Shape::Ringing { freq_hz: 5.0, zeta: 0.07 }, &run, 0, &test_context());
+        assert!(columns.iter().all(|c| c.iter().all(|v| *v == 0.0)), "coloured noise is no rung mode");
+    }
+
     /// A stiff mode (35 Hz, damping 0.09) driven by a slow roll (sines of 0.3 to 2.7 Hz) that
     /// an encoder reads in steps of 0.005 deg: what the mode adds is about a hundredth of the
     /// acceleration, and above the motion the twice-differentiated steps are all the 40 Hz
@@ -405,8 +614,9 @@ mod tests {
     }
 
     /// The resonance's coarse grid starts at the context's floor and stops at 0.35 of the sample
-    /// rate; its refinement around a leading form holds every damping from 0.005 to 0.3 within a
-    /// coarse cell of its frequency.
+    /// rate, for the recorded drives and the rung form alike; its refinement around a leading
+    /// form holds every damping from 0.005 to 0.3 (to 0.1 for the rung form) within a coarse cell
+    /// of its frequency.
     #[test]
     fn resonance_forms_span_the_stated_ranges() {
         let context = test_context();
@@ -414,7 +624,9 @@ mod tests {
         let span = |shapes: &[Shape]| {
             let (mut low, mut high, mut least_zeta, mut most_zeta) = (f64::MAX, 0.0f64, f64::MAX, 0.0f64);
             for shape in shapes {
-                let Shape::Mode { freq_hz, zeta, .. } = *shape else { panic!("{shape:?}") };
+                let (Shape::Mode { freq_hz, zeta, .. } | Shape::Ringing { freq_hz, zeta }) = *shape else {
+                    panic!("{shape:?}")
+                };
                 (low, high) = (low.min(freq_hz), high.max(freq_hz));
                 (least_zeta, most_zeta) = (least_zeta.min(zeta), most_zeta.max(zeta));
             }
@@ -422,7 +634,17 @@ mod tests {
         };
         let (low, high, _, _) = span(&shapes);
         assert!((low - 4.0).abs() < 1e-9 && (high - 300.0).abs() < 1e-9, "{low} {high}");
-        assert_eq!(shapes.len(), RESONANCE_COARSE * RESONANCE_DAMPING_COARSE.len() * RESONANCE_CORNERS_COARSE.len());
+        assert_eq!(
+            shapes.len(),
+            RESONANCE_COARSE
+                * (RESONANCE_DAMPING_COARSE.len() * RESONANCE_CORNERS_COARSE.len() + RINGING_DAMPING_COARSE.len())
+        );
+        let rung: Vec<Shape> = shapes.iter().filter(|s| matches!(s, Shape::Ringing { .. })).copied().collect();
+        let (low, high, _, _) = span(&rung);
+        assert!((low - 4.0).abs() < 1e-9 && (high - 300.0).abs() < 1e-9, "{low} {high}");
+        let fine_rung = BalanceResonance.refine(&Shape::Ringing { freq_hz: 50.0, zeta: 0.02 }, 1000.0, &context);
+        assert!(fine_rung.iter().all(|s| matches!(s, Shape::Ringing { .. })));
+        assert_eq!(span(&fine_rung).2..=span(&fine_rung).3, 0.005..=0.1);
         let fine =
             BalanceResonance.refine(&Shape::Mode { freq_hz: 50.0, zeta: 0.08, drive_corner_hz: 8.0 }, 1000.0, &context);
         let corners: std::collections::BTreeSet<u64> = fine
