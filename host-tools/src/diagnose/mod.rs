@@ -74,7 +74,7 @@ pub const MIN_REMAINDER_TO_NOISE: f64 = 0.05;
 /// unattributed. The contract lets an effect whose effect-to-noise ratio is below one be
 /// missed, and no more (shared/spec/diagnosis.md, "The verdict `none`"): a gap of at least
 /// the noise RMS that the named effects leave is a real gap that they do not explain, and
-/// "unattributed" is for "a real gap [that] no candidate explains" (the same contract, the
+/// "unattributed" is for a real gap "no candidate explains" (the same contract, the
 /// three questions). An effect in a form its family spans leaves its noise; one that leaves
 /// the noise RMS again is some other effect that a candidate partly fits (a clipped balance
 /// taken for a slow flow state, an encoder's backlash for a resonance). A strong effect leaves
