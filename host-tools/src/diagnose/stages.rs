@@ -233,9 +233,16 @@ impl ProbeResult {
     }
 }
 
+/// How far the sim's own gap on a recording may exceed the signature's, measured on the fit's
+/// recording: a factor of two, as [`PooledGap::beyond_scatter`] takes it. On other inputs the
+/// sim's structural error is not bounded by what it was on the fit's, and a remainder that is
+/// the sim's own error is no gap the named effects leave.
+const OWN_GAP_UNCERTAINTY: f64 = 2.0;
+
 /// The gap on the selection part of the runs the named balance effects act on, beyond the
-/// white noise and the sim's own gap (the signature's, per kind of run and angle of attack), in
-/// noise variances weighted by samples, before and after the named effects.
+/// white noise and up to twice the sim's own gap (the signature's, per kind of run and angle of
+/// attack, [`OWN_GAP_UNCERTAINTY`]), in noise variances weighted by samples, before and after
+/// the named effects.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct LeftGap {
     /// Before the named effects.
@@ -257,7 +264,7 @@ impl LeftGap {
                 if gap.n == 0 || !gap.mse_before.is_finite() {
                     continue;
                 }
-                let own = floor.gap_of(run.kind.as_str(), run.alpha_deg).max(0.0);
+                let own = OWN_GAP_UNCERTAINTY * floor.gap_of(run.kind.as_str(), run.alpha_deg).max(0.0);
                 sum += (streams.to_noise(gap.mse_before) - 1.0 - own) * gap.n as f64;
                 n += gap.n;
             }
