@@ -240,9 +240,9 @@ impl ProbeResult {
 const OWN_GAP_UNCERTAINTY: f64 = 2.0;
 
 /// The gap on the selection part of the runs the named balance effects act on, beyond the
-/// white noise and up to twice the sim's own gap (the signature's, per kind of run and angle of
-/// attack, [`OWN_GAP_UNCERTAINTY`]), in noise variances weighted by samples, before and after
-/// the named effects.
+/// white noise and twice the sim's own gap (the signature's, per kind of run and angle of
+/// attack; the factor is its uncertainty on other inputs), in noise variances weighted by
+/// samples, before and after the named effects.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct LeftGap {
     /// Before the named effects.
