@@ -47,7 +47,7 @@ doc() { RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps; }
 nostd() {
     cargo build -p estimator-core --target thumbv7em-none-eabihf --release
     cargo build -p estimator-core --target thumbv7em-none-eabihf --release --features defmt
-    # The measurement variants of issue 18 (`cargo xtask weigh`): they must keep building.
+    # The core's measurement variants (`cargo xtask weigh`): they must keep building.
     cargo build -p estimator-core --target thumbv7em-none-eabihf --release --features micromath,nalgebra
     cargo build -p firmware-sim --bin firmware --no-default-features --features target --target thumbv7em-none-eabihf --release
     # Link-time proof that Estimator::step has no panic path (firmware-sim/src/bin/panic_check.rs):
@@ -55,7 +55,7 @@ nostd() {
     cargo build -p firmware-sim --bin panic_check --no-default-features --features target --target thumbv7em-none-eabihf --profile firmware
 }
 
-# The Python package (issue 19): installed as the README says, its pytest suite against the
+# The Python package (`rollest`): installed as the README says, its pytest suite against the
 # command line, its type stubs against the built module (mypy's stubtest), the wrappers typed.
 python() {
     cargo build --release -p host-tools

@@ -2,7 +2,7 @@
 //!
 //! Run: `cargo bench -p estimator-core --bench step`. Criterion prints the time per step and the
 //! steps per second (`thrpt`, `Melem/s`): one stream (goal: at least 5 million) and 64
-//! independent streams on one core (issue 18's goal: at least 20 million per core).
+//! independent streams on one core (goal: at least 20 million per core).
 #![allow(missing_docs)] // criterion_group! generates an undocumented public function.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};

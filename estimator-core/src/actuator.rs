@@ -1,5 +1,5 @@
 //! The jets' Cmu from the controller's demand, for the steps whose blowing measurement is
-//! missing (issue 16, item 5): the demands the caller notes after each step go into a history,
+//! missing: the demands the caller notes after each step go into a history,
 //! and a missing Cmu is predicted from the previous step's Cmu and the demand one dead time ago
 //! through the fitted [`ActuatorResponse`].
 //!

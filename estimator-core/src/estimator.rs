@@ -542,12 +542,11 @@ mod tests {
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(64))]
 
-        /// Issue 16, item 6: under garbage every final estimate
-        /// stays within the envelope with its margin, every step at which an unbounded
-        /// estimator (same state, an envelope far wider) leaves it is flagged, and an unflagged
-        /// step passes every estimate bit for bit.
+        /// Under garbage every final estimate stays within the envelope with its margin, every
+        /// step at which an unbounded estimator (same state, an envelope far wider) leaves it is
+        /// flagged, and an unflagged step passes every estimate bit for bit.
         #[test]
-        fn issue_16_garbage_never_leaves_the_envelope_and_every_limited_step_is_flagged(
+        fn garbage_never_leaves_the_envelope_and_every_limited_step_is_flagged(
             garbage in proptest::collection::vec(wild_input(), 1..300),
         ) {
             let (narrow_set, wide_set) = (fixture_with_envelope(0.02), fixture_with_envelope(1.0));
@@ -580,11 +579,11 @@ mod tests {
         (demands, cmu)
     }
 
-    /// Issue 16, item 5: with the blowing measurement lost
-    /// after 1 s, the plant runs on the Cmu predicted from the demands and follows the plant of
-    /// an estimator that still measures it; holding the last Cmu (no demand noted) does not.
+    /// With the blowing measurement lost after 1 s, the plant runs on the Cmu predicted from the
+    /// demands and follows the plant of an estimator that still measures it; holding the last Cmu
+    /// (no demand noted) does not.
     #[test]
-    fn issue_16_a_missing_cmu_with_demands_tracks_the_true_cmu_path() {
+    fn a_missing_cmu_with_demands_tracks_the_true_cmu_path() {
         let mut set = full_size_fixture();
         // The prior's plant: a moment of 0.01 at the largest Cmu (the fixture's is tiny).
         set.plant = crate::prior::PRIOR.plant;

@@ -379,7 +379,7 @@ fn correct<R: Real>(
 // On the host the same products run column by column ([`by_columns`]): every row's sum gets
 // the same operations in the same order as `dot` (the host replay stays bit-identical to the
 // firmware in QEMU, which the firmware tests check), but the rows are independent chains that
-// the host's vector units run side by side instead of one dependent chain per row (issue 18).
+// the host's vector units run side by side instead of one dependent chain per row.
 
 /// `A a + B u`, on the host.
 #[cfg(all(not(target_os = "none"), not(feature = "nalgebra")))]
@@ -427,7 +427,7 @@ fn by_columns<R: Real, const N: usize, const M: usize>(m: &[[R; M]; N], x: &[R; 
     sums
 }
 
-/// `A a + B u` by nalgebra (the measurement variant; issue 18).
+/// `A a + B u` by nalgebra (the measurement variant that `cargo xtask weigh` weighs).
 #[cfg(feature = "nalgebra")]
 #[inline(never)]
 fn predict<R: Real>(

@@ -5,8 +5,8 @@
 //! It is a fixture for tests and the skeleton of a fitted set (whose controller settings are
 //! these); the host's fit builds its own prior from the dataset, and a host test keeps the two
 //! equal at the paper's geometry. The tables that fly are fitted (`host-tools fit`) and
-//! generated (`host-tools codegen`). None of its values is a default of the synthetic tunnel
-//! (issue 15): a prior equal to the tunnel starts a fit on it at its truth.
+//! generated (`host-tools codegen`). None of its values is a default of the synthetic tunnel:
+//! a prior equal to the tunnel starts a fit on it at its truth.
 
 use crate::coeffs::{
     ActuatorResponse, CoefficientSet, ControllerParams, EgkParams, Envelope, FusionParams, MAX_VARS, N_ALPHA,

@@ -85,7 +85,7 @@ pub trait Real:
     fn bits(self) -> Self::Bits;
 
     /// `m x + y` for a row-major `N x M` matrix `m`, by nalgebra's fixed-size product (the
-    /// `nalgebra` measurement variant of the pressure filter; issue 18).
+    /// `nalgebra` measurement variant of the pressure filter).
     #[cfg(feature = "nalgebra")]
     fn mat_vec_add<const N: usize, const M: usize>(m: &[[Self; M]; N], x: &[Self; M], y: &[Self; N]) -> [Self; N];
 }

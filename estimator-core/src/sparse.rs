@@ -14,8 +14,8 @@ use crate::real::Real;
 /// degree below [`MAX_DEGREE`].
 ///
 /// An enum, not a `u8`: the compiler then knows every factor indexes the evaluation table, so
-/// an interpreted term reads each factor with no mask and no bounds check (issue 16: three
-/// instructions per term on the M4F, which put a loaded set's worst step within its budget).
+/// an interpreted term reads each factor with no mask and no bounds check (three instructions
+/// per term on the M4F, which put a loaded set's worst step within its instruction budget).
 /// `postcard` writes a unit variant as its index, one byte, as it wrote the `u8`: blobs are
 /// unchanged, and one that names no factor fails to decode.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
@@ -64,7 +64,7 @@ pub const ONE_FACTOR: Factor = Factor::One;
 /// The term is stored as its factors (a variable index per degree, [`ONE_FACTOR`] for none),
 /// not as a power per variable: the core then multiplies exactly [`MAX_DEGREE`] table entries
 /// per term without scanning the variables, which more than halves the cost of a term on the
-/// M4F (issue 6). Factors are kept in ascending order with the padding last, so that equal
+/// M4F. Factors are kept in ascending order with the padding last, so that equal
 /// monomials compare equal.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub struct Monomial {
@@ -191,9 +191,10 @@ impl SparseModel {
     /// summed in order. A [`Factor`] always indexes the table, so the loop has no bounds check.
     ///
     /// The indicators are computed only when a term has a gate: the plant models have none,
-    /// and their indicators cost about a fifth of an interpreted model (issue 16: a loaded set's
-    /// worst step, 3,327 -> 3,095 instructions on the M4F). The sum is the same, bit for bit,
-    /// as evaluating every indicator first: the terms and their order do not change.
+    /// and their indicators cost about a fifth of an interpreted model (a loaded set's worst step:
+    /// 3,095 instructions on the M4F, 3,327 with every indicator computed first). The sum is the
+    /// same, bit for bit, as evaluating every indicator first: the terms and their order do not
+    /// change.
     #[must_use]
     pub fn eval(&self, vars: &[f32; MAX_VARS]) -> f32 {
         self.eval_in(vars)
@@ -290,7 +291,7 @@ impl ModelId {
 ///
 /// [`Interpreted`] reads the tables, so it serves any set (a loaded blob); the built-in set
 /// also has its models generated as straight-line code (`coeffs::CompiledDefault`), which
-/// gives the same bits at a fraction of the instructions on the M4F (issue 6).
+/// gives the same bits at a fraction of the instructions on the M4F.
 pub trait SparseEval: Copy {
     /// The value of `model`, which is the set's model `id`, at `vars`.
     fn eval(self, id: ModelId, model: &SparseModel, vars: &[f32; MAX_VARS]) -> f32;
@@ -360,7 +361,7 @@ mod tests {
 
     proptest! {
         /// The lazy indicators give the eager evaluation's sum bit for bit, wherever the first
-        /// gated term sits and whether its gate is open or shut (issue 16).
+        /// gated term sits and whether its gate is open or shut.
         #[test]
         fn lazy_indicators_sum_bit_for_bit_like_eager_ones(
             terms in proptest::collection::vec(term_strategy(), 0..=MAX_TERMS),

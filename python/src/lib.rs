@@ -1,4 +1,4 @@
-//! `rollest._rollest`: the Python extension module of the `rollest` package (issue 19).
+//! `rollest._rollest`: the Python extension module of the `rollest` package.
 //!
 //! The same engine as the command line, in-process: the dataset loader, the synthetic tunnel, the
 //! fit, the replay, the evaluation and the diagnosis are `host_tools::command` and

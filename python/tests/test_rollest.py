@@ -1,4 +1,4 @@
-"""The acceptance of issue 19: the package against the command line, bit for bit."""
+"""The acceptance of the `rollest` package: it matches the command line, bit for bit."""
 
 from __future__ import annotations
 

@@ -10,10 +10,10 @@ use firmware_sim::dataset::RunKind;
 use host_tools::{hil, qemu};
 
 /// Instructions of one `Estimator::step` on the Cortex-M4F, largest after the warm-up steps:
-/// the budget with the built-in tables as generated code (issue 16).
+/// the budget with the built-in tables as generated code.
 const MAX_INSTRUCTIONS_COMPILED: f64 = 2_500.0;
 /// The same with a coefficient set loaded at run time (its sparse models interpreted from the
-/// tables): issue 16's budget.
+/// tables): the flight-controller loop's budget.
 const MAX_INSTRUCTIONS_LOADED: f64 = 3_000.0;
 
 fn assert_qemu() {
@@ -44,7 +44,7 @@ fn assert_bit_identical(replay: &qemu::QemuReplay, steps: usize) {
     assert_eq!(comparison.health_mismatches, 0, "health bits differ");
 }
 
-/// Issue 18: the C example flies the estimator through the C interface, built with
+/// The C example flies the estimator through the C interface, built with
 /// arm-none-eabi-gcc, bit for bit like the host: with the built-in tables and with the default
 /// model's blob loaded at run time; a blob with a flipped bit makes it exit with
 /// ROLLEST_STATUS_BLOB_CRC_MISMATCH (16), the documented code.

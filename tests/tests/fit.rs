@@ -27,7 +27,7 @@ fn committed_default_model_is_the_fit_on_the_default_campaign() {
     let committed = std::fs::read(default_model().join("model.bin")).expect("committed blob");
     assert!(fitted == committed, "re-run `host-tools fit` on the default campaign and `host-tools codegen`");
     // The coupling operator lowers the held-out error at every alpha, most at 20 deg, to at
-    // most the paper's 0.85 there (issue 5's acceptance on the default campaign).
+    // most the paper's 0.85 there (the paper's analysis, reproduced on the default campaign).
     let ratios: Vec<f64> = outcome.report.heldout.per_alpha.iter().filter_map(|row| row.coupling_ratio).collect();
     assert_eq!(ratios.len(), 3);
     assert!(ratios.iter().all(|&ratio| ratio < 1.0), "{ratios:?}");
@@ -70,11 +70,11 @@ fn short(kinds: &[RunKind]) -> firmware_sim::dataset::Dataset {
     record(12.0, &[10.0], kinds, BlowingSides::Port)
 }
 
-/// Issue 16, item 5: the actuator response is fitted on the
-/// recording's commanded Cmu (the tunnel's valve: 5 ms dead time, 3 ms lag, unit gain); a
-/// recording without command columns gets the identity, and the model card says so.
+/// The actuator response is fitted on the recording's commanded Cmu (the tunnel's valve: 5 ms
+/// dead time, 3 ms lag, unit gain); a recording without command columns gets the identity, and
+/// the model card says so.
 #[test]
-fn issue_16_the_actuator_response_is_fitted_on_the_commands_or_is_the_identity() {
+fn the_actuator_response_is_fitted_on_the_commands_or_is_the_identity() {
     use estimator_core::coeffs::ActuatorResponse;
     use host_tools::fit::actuator::ResponseSource;
     let dataset = short(&[RunKind::Roll, RunKind::Actuation]);
@@ -161,7 +161,7 @@ fn the_held_out_part_does_not_reach_the_fit() {
             channels.cl[k] = -3.0 * channels.cl[k] + 0.02 * wobble;
             channels.phi_deg[k] += 5.0 * wobble;
             channels.cmu_port[k] *= 1.5;
-            // The actuator response is fitted on the commanded Cmu (issue 16).
+            // The actuator response is fitted on the commanded Cmu.
             for command in [&mut channels.cmu_port_cmd, &mut channels.cmu_stbd_cmd].into_iter().flatten() {
                 command[k] = 0.009 * wobble.abs();
             }

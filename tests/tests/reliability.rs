@@ -1,4 +1,4 @@
-//! Reliability (issue 8): sensor faults in replays and in the SIL loop, the fault study's goals,
+//! Reliability: sensor faults in replays and in the SIL loop, the fault study's goals,
 //! the loaders' fuzzer, the soak, and folders that stay complete or absent when the writing
 //! process is killed.
 
@@ -121,9 +121,9 @@ fn every_loader_survives_its_fuzzer_with_typed_errors() {
     }
 }
 
-/// Also issue 16, item 6: the garbage drives the estimate
-/// without the envelope far beyond it (to 0.39), yet no estimate leaves the envelope with its
-/// margin and every step that had to be limited is flagged.
+/// Bounded by the estimate envelope too: the garbage drives the estimate without the envelope
+/// far beyond it (to 0.39), yet no estimate leaves the envelope with its margin and every step
+/// that had to be limited is flagged.
 #[test]
 fn a_million_soak_steps_stay_finite_and_bounded() {
     let outcome = soak(&DEFAULT, &SoakConfig { steps: 1_000_000, seed: 1, streams: 2 });
@@ -142,14 +142,13 @@ fn a_million_soak_steps_stay_finite_and_bounded() {
     assert_eq!(outcome.beyond_envelope_steps, 0, "{outcome:?}");
 }
 
-/// Issue 16, item 5: with the blowing measurement lost from
-/// 2 s on, the replay notes the recorded commands as the demand and the plant runs on the Cmu
-/// the fitted actuator response predicts: its moment follows the one of the measured Cmu (the
-/// true Cmu path) within a tenth of its RMS, where holding the last Cmu (a recording without
-/// the command columns) misses it by more than half; and the fault study's error ratio is
-/// within its goal of 1.5 (12.8 when the Cmu was held).
+/// With the blowing measurement lost from 2 s on, the replay notes the recorded commands as the
+/// demand and the plant runs on the Cmu the fitted actuator response predicts: its moment
+/// follows the one of the measured Cmu (the true Cmu path) within a tenth of its RMS, where
+/// holding the last Cmu (a recording without the command columns) misses it by more than half;
+/// and the fault study's error ratio is within its goal of 1.5 (12.8 when the Cmu was held).
 #[test]
-fn issue_16_missing_cmu_runs_the_plant_on_the_demand() {
+fn missing_cmu_runs_the_plant_on_the_demand() {
     let dataset = short_campaign();
     let run = dataset.runs.iter().find(|run| run.meta.kind == RunKind::Actuation).expect("an actuation run");
     let faulty = firmware_sim::fault::apply_to_run(run, &specs(&["missing:cmu@2s"]), 1);

@@ -1,4 +1,4 @@
-//! `cargo xtask weigh`: the design's packages weighed by measurement (issue 18). The firmware is
+//! `cargo xtask weigh`: the design's packages weighed by measurement. The firmware is
 //! built three times, with the core as it is, with micromath's approximations of its
 //! transcendental functions (`estimator-core/micromath`), and with nalgebra's fixed-size
 //! matrix-vector products in the pressure filter (`estimator-core/nalgebra`); each replays the

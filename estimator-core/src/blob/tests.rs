@@ -435,11 +435,10 @@ fn blob_rejects_invalid_set_after_decoding() {
     assert_eq!(decode(&blob), Err(DecodeError::Invalid(InvalidSet("pressure.gain is not finite"))));
 }
 
-/// Issue 8 (reliability; the fuzzer of `cargo xtask fuzz --target blob` found it): finite
-/// pressure tables whose product overflows passed validation, and the step then returned a
-/// NaN `cl_pressure`.
+/// Found by the fuzzer of `cargo xtask fuzz --target blob`: finite pressure tables whose
+/// product overflows passed validation, and the step then returned a NaN `cl_pressure`.
 #[test]
-fn issue_8_pressure_tables_that_overflow_are_rejected_and_never_reach_the_output() {
+fn pressure_tables_that_overflow_are_rejected_and_never_reach_the_output() {
     let mut set = crate::coeffs::DEFAULT;
     set.pressure.cl_weights[0][1] = 1e30;
     set.pressure.c[1][0] = 1e23;

@@ -3,7 +3,7 @@
 //! Interpreting a sparse model walks its table: per term a coefficient, three factor indices
 //! and a gate mask are loaded, about 20 instructions on the Cortex-M4F. `host-tools codegen`
 //! also writes each model of [`DEFAULT`] as a function of straight-line code with the
-//! coefficients as literals, about 4 instructions per term (issue 6). The generated functions
+//! coefficients as literals, about 4 instructions per term. The generated functions
 //! follow [`SparseModel::eval`] operation by operation, so they give the same bits; the
 //! firmware-against-host replay test checks that on a whole run.
 

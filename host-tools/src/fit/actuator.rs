@@ -1,4 +1,4 @@
-//! The jets' actuator response (`estimator_core::coeffs::ActuatorResponse`, issue 16 item 5):
+//! The jets' actuator response (`estimator_core::coeffs::ActuatorResponse`):
 //! the measured Cmu against the commanded one (the dataset's optional `cmu_port_cmd` and
 //! `cmu_stbd_cmd` columns), `Cmu[k] = p Cmu[k-1] + (1 - p) g cmd[k - 1 - d]`, fitted on the
 //! training part of every run that commands the jet.

@@ -155,7 +155,7 @@ pub fn model_card(set: &CoefficientSet, report: &FitReport, dataset: &str) -> St
     md
 }
 
-/// The jets' actuator responses (issue 16 item 5): what the plant runs on while the blowing
+/// The jets' actuator responses: what the plant runs on while the blowing
 /// measurement is missing.
 fn actuator_section(md: &mut String, report: &FitReport) {
     let _ = writeln!(
@@ -187,7 +187,7 @@ fn actuator_section(md: &mut String, report: &FitReport) {
     md.push('\n');
 }
 
-/// The estimate envelope (issue 16 item 6).
+/// The estimate envelope: the range the core keeps its estimates within.
 fn envelope_section(md: &mut String, report: &FitReport) {
     let envelope = &report.envelope;
     let _ = writeln!(

@@ -1,4 +1,4 @@
-//! The estimate envelope (`estimator_core::coeffs::Envelope`, issue 16 item 6): the range of
+//! The estimate envelope (`estimator_core::coeffs::Envelope`): the range of
 //! roll moments the balance measured over the training part of the runs, the disturbance alone
 //! in the roll runs and the total in every run. The core keeps its estimates within it, widened
 //! by `estimator_core::coeffs::ENVELOPE_MARGIN` of its span on each side.

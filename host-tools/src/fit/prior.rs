@@ -1,6 +1,6 @@
 //! The eGK fit's prior: centres from physics and the literature, scaled by the dataset's own
 //! geometry and free-stream speed, and widths wide enough that the data decide wherever they
-//! see a parameter (issue 15).
+//! see a parameter.
 //!
 //! The fit is a maximum a posteriori fit ([`super::egk`]): what the data cannot see stays at
 //! the prior (at alpha = 0 the vortex states do not move, at 10 deg they barely do). So no
@@ -297,12 +297,12 @@ mod tests {
         ]
     }
 
-    /// Issue 15: no centre of the fit's prior is the synthetic tunnel's default at the paper's
+    /// No centre of the fit's prior is the synthetic tunnel's default at the paper's
     /// geometry, nor within 5 % of it (a copy rounded differently is still a copy). Values the
     /// tunnel and the prior both put at zero by the wing's symmetry (the sideslip derivative
     /// and the vortex gain at alpha = 0, the bias) are physics, not a copy, and are skipped.
     #[test]
-    fn issue_15_no_prior_centre_is_a_tunnel_default() {
+    fn no_prior_centre_is_a_tunnel_default() {
         let config = TunnelConfig::default();
         let aero = config.aero;
         for alpha_deg in [0.0f64, 5.0, 10.0, 15.0, 20.0, 25.0] {

@@ -1,4 +1,4 @@
-//! Reliability (issue 8): how the estimator copes with faulty sensors, and how the loaders cope
+//! Reliability: how the estimator copes with faulty sensors, and how the loaders cope
 //! with bad files.
 //!
 //! - [`faults`]: the fault study on held-out data (detection latency, error with one fault);

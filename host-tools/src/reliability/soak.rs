@@ -6,7 +6,7 @@
 //! reference's within [`RECOVERED_ERROR_BOUND`]: no fault may leave a lasting trace in the state
 //! (during a fault the envelope below bounds the error).
 //!
-//! The envelope (issue 16 item 6): the faulty estimator's `C_l,roll`, `C_l,linear` and `C_l`
+//! The envelope: the faulty estimator's `C_l,roll`, `C_l,linear` and `C_l`
 //! must stay within the coefficient set's envelope with its margin at every step, and every step
 //! at which they had to be limited must be flagged `ESTIMATE_LIMITED`. Which steps had to be is
 //! told by a third estimator, stepped on the same faulty input with the envelope opened to
@@ -367,11 +367,10 @@ mod tests {
         assert!(outcome.worst_error > 0.0, "faults must move the estimate: {outcome:?}");
     }
 
-    /// Issue 16, item 6: the soak's garbage drives the
-    /// estimate beyond the envelope (0.39 before it), every such step is limited and flagged,
-    /// and no estimate leaves the envelope with its margin.
+    /// The soak's garbage drives the estimate beyond the envelope (0.39 before it), every such
+    /// step is limited and flagged, and no estimate leaves the envelope with its margin.
     #[test]
-    fn issue_16_the_soak_limits_and_flags_every_step_beyond_the_envelope() {
+    fn the_soak_limits_and_flags_every_step_beyond_the_envelope() {
         let set = estimator_core::coeffs::DEFAULT;
         let outcome = soak(&set, &SoakConfig { steps: 200_000, seed: 3, streams: 2 });
         let [low, high] = outcome.cl_bounds;

@@ -1,4 +1,4 @@
-//! The blind validation campaign of the diagnosis (`validate-diagnosis`, issue 7;
+//! The blind validation campaign of the diagnosis (`validate-diagnosis`;
 //! docs/diagnosis.md, Validation campaigns): seeded cases, each a dataset recorded by the synthetic
 //! tunnel with one effect of the vocabulary, no effect, or an effect outside the vocabulary, at a
 //! random angle of attack and a random magnitude (effect RMS from 0.5 to 4 times the noise RMS of

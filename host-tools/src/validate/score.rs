@@ -1,6 +1,6 @@
 //! The scorer of the blind campaign: reads the sealed truth only after the diagnosis, and
-//! summarises the cases as the acceptance asks (confusion matrix, accuracy by effect
-//! and by signal-to-noise, shrink distribution).
+//! summarises the cases as docs/diagnosis.md (Validation campaigns, Scoring) asks (confusion
+//! matrix, accuracy by effect and by signal-to-noise, shrink distribution).
 
 use std::collections::BTreeMap;
 
