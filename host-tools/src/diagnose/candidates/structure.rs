@@ -144,7 +144,7 @@ impl BalanceCandidate for BalanceResonance {
 
     fn columns(&self, shape: &Shape, run: &RunStreams, _run_idx: usize, context: &Context<'_>) -> Vec<Vec<f64>> {
         if let Shape::Ringing { freq_hz, zeta } = *shape {
-            return ringing_columns(run, freq_hz, zeta).to_vec();
+            return Vec::from(ringing_columns(run, freq_hz, zeta));
         }
         let Shape::Mode { freq_hz, zeta, drive_corner_hz } = *shape else { return Vec::new() };
         let dt_s = 1.0 / run.sample_hz;
@@ -154,7 +154,7 @@ impl BalanceCandidate for BalanceResonance {
         // load (a mode fed by the jets' reaction, not by the flow over the wing).
         let blowing = run.cl_afc();
         let scale = [1.0, 1.0 / context.moment_scale_nm, 1.0];
-        mode_excess([&load, acceleration, &blowing], scale, freq_hz, zeta, dt_s).to_vec()
+        Vec::from(mode_excess([&load, acceleration, &blowing], scale, freq_hz, zeta, dt_s))
     }
 
     fn params(&self, shape: &Shape, beta: &[f64], _context: &Context<'_>, _columns: &[Vec<Vec<f64>>]) -> Params {
@@ -293,23 +293,28 @@ fn ringing_columns(run: &RunStreams, freq_hz: f64, zeta: f64) -> [Vec<f64>; 1] {
 /// own error) falls with the frequency, and is no mode however predictable it is.
 fn is_peak(held: &[f64], band: &[f64], run: &RunStreams, freq_hz: f64, width: f64) -> bool {
     let dt_s = 1.0 / run.sample_hz;
-    let density = |values: &[f64], at_hz: f64| mean_square_on_fit(values, run) / at_hz;
-    let here = density(band, freq_hz);
-    let below_hz = 0.5 * freq_hz;
+    let on_fit = |i: usize| run.training.contains(&i) && !run.select.contains(i);
+    let here = mean_square_on_fit(band.iter().copied(), on_fit, run.sample_hz) / freq_hz;
+    // The side bands only as far as they are needed (the profile asks every coarse frequency).
+    let side =
+        |at_hz: f64| mean_square_on_fit(BandPass::new(at_hz, width, dt_s).over(held), on_fit, run.sample_hz) / at_hz;
+    let peaks_over = |at_hz: f64| here >= RINGING_MIN_PEAK * side(at_hz);
+    let positive = here > 0.0;
+    if !positive || !peaks_over(0.5 * freq_hz) {
+        return false;
+    }
     let above_hz = (2.0 * freq_hz).min(0.45 * run.sample_hz);
-    let below = density(&band_pass(held, below_hz, width, dt_s), below_hz);
-    let above = if above_hz > freq_hz * 1.2 { density(&band_pass(held, above_hz, width, dt_s), above_hz) } else { 0.0 };
-    here > 0.0 && here >= RINGING_MIN_PEAK * below.max(above)
+    above_hz <= freq_hz * 1.2 || peaks_over(above_hz)
 }
 
-/// Mean square of `values` over the run's fit samples past the first second (the band-passes'
-/// settling).
-fn mean_square_on_fit(values: &[f64], run: &RunStreams) -> f64 {
-    let settle = run.sample_hz.round() as usize;
-    let (sum, n) = run
-        .fit_samples()
-        .filter(|&i| i >= settle)
-        .fold((0.0, 0usize), |(sum, n), i| (sum + values[i] * values[i], n + 1));
+/// Mean square of `values` over the samples `on_fit` keeps past the first second (the
+/// band-passes' settling).
+fn mean_square_on_fit(values: impl Iterator<Item = f64>, on_fit: impl Fn(usize) -> bool, sample_hz: f64) -> f64 {
+    let settle = sample_hz.round() as usize;
+    let (sum, n) = values
+        .enumerate()
+        .filter(|&(i, _)| i >= settle && on_fit(i))
+        .fold((0.0, 0usize), |(sum, n), (_, v)| (sum + v * v, n + 1));
     if n == 0 { 0.0 } else { sum / n as f64 }
 }
 
@@ -317,21 +322,40 @@ fn mean_square_on_fit(values: &[f64], run: &RunStreams) -> f64 {
 /// transform, natural frequency pre-warped), started at rest.
 #[must_use]
 pub fn band_pass(values: &[f64], freq_hz: f64, zeta: f64, dt_s: f64) -> Vec<f64> {
-    let omega = 2.0 / dt_s * (std::f64::consts::PI * freq_hz * dt_s).tan();
-    let k = 2.0 / dt_s;
-    let two_zw = 2.0 * zeta * omega;
-    let a0 = k * k + two_zw * k + omega * omega;
-    let (b0, a1, a2) =
-        (two_zw * k / a0, (2.0 * omega * omega - 2.0 * k * k) / a0, (k * k - two_zw * k + omega * omega) / a0);
-    let (mut x1, mut x2, mut y1, mut y2) = (0.0, 0.0, 0.0, 0.0);
-    values
-        .iter()
-        .map(|&x| {
+    BandPass::new(freq_hz, zeta, dt_s).over(values).collect()
+}
+
+/// The filter of [`band_pass`]: its coefficients, applied sample by sample.
+#[derive(Debug, Clone, Copy)]
+struct BandPass {
+    b0: f64,
+    a1: f64,
+    a2: f64,
+}
+
+impl BandPass {
+    fn new(freq_hz: f64, zeta: f64, dt_s: f64) -> Self {
+        let omega = 2.0 / dt_s * (std::f64::consts::PI * freq_hz * dt_s).tan();
+        let k = 2.0 / dt_s;
+        let two_zw = 2.0 * zeta * omega;
+        let a0 = k * k + two_zw * k + omega * omega;
+        Self {
+            b0: two_zw * k / a0,
+            a1: (2.0 * omega * omega - 2.0 * k * k) / a0,
+            a2: (k * k - two_zw * k + omega * omega) / a0,
+        }
+    }
+
+    /// The filtered `values`, started at rest.
+    fn over(self, values: &[f64]) -> impl Iterator<Item = f64> + '_ {
+        let Self { b0, a1, a2 } = self;
+        let (mut x1, mut x2, mut y1, mut y2) = (0.0, 0.0, 0.0, 0.0);
+        values.iter().map(move |&x| {
             let y = b0 * (x - x2) - a1 * y1 - a2 * y2;
             (x2, x1, y2, y1) = (x1, x, y1, y);
             y
         })
-        .collect()
+    }
 }
 
 /// Coefficient of variation of the band's power averaged over two periods of `freq_hz`, over
