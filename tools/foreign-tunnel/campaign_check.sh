@@ -6,7 +6,7 @@
 # fails, if a case is not scored, if a sealed truth does not match its hash, or if the clean
 # case names an effect (a wrong name where there is none). The other criteria are printed, not
 # checked: at one case per class they are a sample, and their goals are measured on the full
-# campaign (docs/results.md, "The gap diagnosis (issues 7 and 15)").
+# campaign (docs/results.md, "The gap diagnosis: the first campaigns").
 #
 # Without SEED, the seed is the commit under test's: the first 8 hex digits of
 # `git rev-parse HEAD` as an integer (3 outside git), so every commit draws other forms and
