@@ -234,7 +234,8 @@ impl ProbeResult {
 }
 
 /// How far the sim's own gap on a recording may exceed the signature's, measured on the fit's
-/// recording: a factor of two, as [`PooledGap::beyond_scatter`] takes it. On other inputs the
+/// recording: a factor of two, for the gap named effects leave and for the gap beyond the
+/// sim's scatter ([`PooledGap::beyond_scatter`]) alike. On other inputs the
 /// sim's structural error is not bounded by what it was on the fit's, and a remainder that is
 /// the sim's own error is no gap the named effects leave.
 const OWN_GAP_UNCERTAINTY: f64 = 2.0;
@@ -495,7 +496,7 @@ impl PooledGap {
     /// error is measured on one recording, the fit's; on other inputs (another excitation,
     /// another rate of roll) its mean square is not bounded by that, and may well be as large
     /// again. So the excess over the sim's own gap must be at least the sim's own gap (the
-    /// floor taken as known within a factor of two) and the naming threshold, and significant
+    /// floor taken as known within [`OWN_GAP_UNCERTAINTY`]) and the naming threshold, and significant
     /// by [`GAP_SIGNIFICANCE_Z`] standard errors. A gap this far beyond the sim is not its
     /// scatter from recording to recording, whether or not any candidate or probe predicts it
     /// (a random modulation, such as a fluctuating dynamic pressure, predicts nothing out of
@@ -507,6 +508,7 @@ impl PooledGap {
         let excess = (self.gap - self.floor) / self.n;
         let floor = self.floor / self.n;
         let scatter = self.scatter_sq.sqrt() / self.n;
-        excess >= (MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE).max(floor) && excess >= GAP_SIGNIFICANCE_Z * scatter
+        excess >= (MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE).max((OWN_GAP_UNCERTAINTY - 1.0) * floor)
+            && excess >= GAP_SIGNIFICANCE_Z * scatter
     }
 }

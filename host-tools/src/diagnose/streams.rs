@@ -185,7 +185,13 @@ impl RunStreams {
 
     /// The training samples less the selection blocks: where candidates are fitted.
     pub fn fit_samples(&self) -> impl Iterator<Item = usize> + '_ {
-        self.training.clone().filter(|&idx| !self.select.contains(idx))
+        self.training.clone().filter(|&idx| self.is_fit_sample(idx))
+    }
+
+    /// Whether sample `idx` is one of [`Self::fit_samples`].
+    #[must_use]
+    pub fn is_fit_sample(&self, idx: usize) -> bool {
+        self.training.contains(&idx) && !self.select.contains(idx)
     }
 
     /// Re-runs the sim's plants on other Cmu sequences (one per jet), as the core steps them.

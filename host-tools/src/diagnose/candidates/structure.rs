@@ -293,27 +293,24 @@ fn ringing_columns(run: &RunStreams, freq_hz: f64, zeta: f64) -> [Vec<f64>; 1] {
 /// own error) falls with the frequency, and is no mode however predictable it is.
 fn is_peak(held: &[f64], band: &[f64], run: &RunStreams, freq_hz: f64, width: f64) -> bool {
     let dt_s = 1.0 / run.sample_hz;
-    let on_fit = |i: usize| run.training.contains(&i) && !run.select.contains(i);
-    let here = mean_square_on_fit(band.iter().copied(), on_fit, run.sample_hz) / freq_hz;
+    let here = mean_square_on_fit(band.iter().copied(), run) / freq_hz;
     // The side bands only as far as they are needed (the profile asks every coarse frequency).
-    let side =
-        |at_hz: f64| mean_square_on_fit(BandPass::new(at_hz, width, dt_s).over(held), on_fit, run.sample_hz) / at_hz;
+    let side = |at_hz: f64| mean_square_on_fit(BandPass::new(at_hz, width, dt_s).over(held), run) / at_hz;
     let peaks_over = |at_hz: f64| here >= RINGING_MIN_PEAK * side(at_hz);
-    let positive = here > 0.0;
-    if !positive || !peaks_over(0.5 * freq_hz) {
+    if here <= 0.0 || !peaks_over(0.5 * freq_hz) {
         return false;
     }
     let above_hz = (2.0 * freq_hz).min(0.45 * run.sample_hz);
     above_hz <= freq_hz * 1.2 || peaks_over(above_hz)
 }
 
-/// Mean square of `values` over the samples `on_fit` keeps past the first second (the
-/// band-passes' settling).
-fn mean_square_on_fit(values: impl Iterator<Item = f64>, on_fit: impl Fn(usize) -> bool, sample_hz: f64) -> f64 {
-    let settle = sample_hz.round() as usize;
+/// Mean square of `values` (a run's samples in order) over the run's fit samples past the first
+/// second (the band-passes' settling).
+fn mean_square_on_fit(values: impl Iterator<Item = f64>, run: &RunStreams) -> f64 {
+    let settle = run.sample_hz.round() as usize;
     let (sum, n) = values
         .enumerate()
-        .filter(|&(i, _)| i >= settle && on_fit(i))
+        .filter(|&(i, _)| i >= settle && run.is_fit_sample(i))
         .fold((0.0, 0usize), |(sum, n), (_, v)| (sum + v * v, n + 1));
     if n == 0 { 0.0 } else { sum / n as f64 }
 }
@@ -367,19 +364,20 @@ fn envelope_cv(band: &[f64], run: &RunStreams, freq_hz: f64, zeta: f64) -> f64 {
     let window = ((2.0 * run.sample_hz / freq_hz).round() as usize).max(2);
     let settle_s = (5.0 / (zeta * std::f64::consts::TAU * freq_hz)).max(1.0);
     let settle = (settle_s * run.sample_hz).round() as usize;
-    let samples: Vec<usize> = run.fit_samples().filter(|&i| i >= settle + window).collect();
-    // Non-overlapping windows of consecutive fit samples.
+    // Non-overlapping windows of consecutive fit samples: (last sample, samples, sum of squares).
     let mut powers = Vec::new();
-    let mut chunk = Vec::with_capacity(window);
-    for &i in &samples {
-        if chunk.last().is_some_and(|&last: &usize| last + 1 != i) {
-            chunk.clear();
-        }
-        chunk.push(i);
-        if chunk.len() == window {
-            powers.push(chunk.iter().map(|&j| band[j] * band[j]).sum::<f64>() / window as f64);
-            chunk.clear();
-        }
+    let mut chunk: Option<(usize, usize, f64)> = None;
+    for i in run.fit_samples().filter(|&i| i >= settle + window) {
+        let (count, sum) = match chunk {
+            Some((last, count, sum)) if last + 1 == i => (count + 1, sum + band[i] * band[i]),
+            _ => (1, band[i] * band[i]),
+        };
+        chunk = if count == window {
+            powers.push(sum / window as f64);
+            None
+        } else {
+            Some((i, count, sum))
+        };
     }
     if powers.len() < 10 {
         return 0.0;
