@@ -21,8 +21,9 @@ pub mod candidates;
 mod decision;
 pub mod faults;
 pub mod gap_ledger;
+pub mod lag_set;
 pub mod ledger;
-pub mod pressure_lag;
+mod pressure_lag;
 pub mod regression;
 pub mod report;
 pub mod result;
@@ -187,6 +188,8 @@ pub fn diagnose(
         pressure_alignment_s: pressure_lag::Alignment::new(&streams.runs, |run| run.fit_samples().collect())
             .and_then(|alignment| alignment.reference()),
         pressure_alignment_scatter_s: pressure_lag::run_scatter_s(&streams.runs, pressure_lag::REFERENCE_RANGE_S),
+        // Only a signature needs it (a diagnosis without one is the sim on its own data).
+        pressure_channel_lags: config.signature.is_none().then(|| lag_set::identify(&streams.runs)).flatten(),
     };
 
     let mut effects = Vec::new();

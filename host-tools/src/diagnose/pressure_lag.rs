@@ -481,18 +481,158 @@ pub fn finding(runs: &[RunStreams], reference: impl Into<Reference>) -> Option<S
     })
 }
 
-/// Mean square of a lag's deviation from the true pressure, `-tau y'` (exact for a first-order
-/// lag), over the channels `taps` and the samples `part(run)` of every run, and their number.
-fn lag_deviation(
+/// The least lag of a channel in a set, s: half the contract's shortest lag (5 ms,
+/// shared/spec/diagnosis.md, What each name covers), the midpoint between no lag and the
+/// shortest one. Below it a channel's apparent lag is the pressure model's error, which moves a
+/// channel's relative lag by a millisecond or two from recording to recording.
+pub const MIN_CHANNEL_LAG_S: f64 = 2.5e-3;
+
+/// Share of the largest lag of a set that a healthy channel can show: a lag left in what the
+/// others expect of a channel (a de-lag that is not exact: a second-order lag, a time constant
+/// a few per cent off) moves its apparent lag with the size of the lags around it. On the
+/// development rig of the second tunnel, healthy channels beside a lagged set showed 10 to 29 %
+/// of the set's largest lag (five recordings, sets of two to seven channels, 17 to 75 ms).
+const FOOTPRINT_SHARE: f64 = 0.3;
+
+/// Standard errors a channel's lag must stand above zero to count as lagged.
+const CHANNEL_LAG_Z: f64 = 3.0;
+
+/// The `pressure_lag` finding of a set of channels, each with its own time constant: how the
+/// channels' lags differ is the innovations' (`lags`, [`super::lag_set::identify`], less the
+/// sim's own differences on the data it was fitted on, `own`), and the lag they share is the
+/// balance's, which reads the pressures without lag. The common shift is fitted on the balance
+/// with every channel's difference fixed; the channels whose lag stands above zero
+/// ([`MIN_CHANNEL_LAG_S`], [`CHANNEL_LAG_Z`] standard errors) are the set; the set's shift is
+/// fitted again with the others at the sim's own alignment. `None` without a set, or when its
+/// mean lag is within the scatter of both alignments (as [`finding`]'s).
+///
+/// Fitted on the training part only (the innovations' slopes and the balance's shifts and
+/// weights); the selection and held-out parts are judged with everything fixed (`part_check`).
+#[must_use]
+pub fn set_finding(
+    runs: &[RunStreams],
+    reference: impl Into<Reference>,
+    lags: &super::lag_set::ChannelLags,
+    own: Option<&super::lag_set::ChannelLags>,
+) -> Option<SensorFinding> {
+    let reference = reference.into();
+    let reference_tau_s = reference.tau_s;
+    let alignment = Alignment::new(runs, |run| run.fit_samples().collect())?;
+    let taps = alignment.taps().to_vec();
+    let own_of = |tap: usize| own.and_then(|own| own.relative_s.get(tap).copied()).unwrap_or(0.0);
+    let own_se_of = |tap: usize| own.and_then(|own| own.standard_error_s.get(tap).copied()).unwrap_or(0.0);
+    let contrast: Vec<f64> =
+        taps.iter().map(|&tap| lags.relative_s.get(tap).copied().unwrap_or(0.0) - own_of(tap)).collect();
+    let range = (TAU_RANGE_S.0.min(reference_tau_s - 0.1), TAU_RANGE_S.1);
+    let shifted = |shift_s: f64, member: &dyn Fn(usize) -> bool| -> Vec<f64> {
+        contrast.iter().enumerate().map(|(col, c)| if member(col) { shift_s + c } else { reference_tau_s }).collect()
+    };
+    // The least lagged channel is taken as healthy (a lag is never negative), unless the
+    // balance shows beyond the scatter of both alignments that every channel is lagged.
+    let least = contrast.iter().copied().fold(f64::INFINITY, f64::min);
+    let anchored_s = reference_tau_s - least;
+    let balance_s = minimise(|shift_s| alignment.ssr(&shifted(shift_s, &|_| true)), range);
+    let scatter_s = run_scatter_s(runs, range).unwrap_or(0.0).hypot(reference.scatter_s);
+    let every_lagged = balance_s - anchored_s >= MIN_CHANNEL_LAG_S.max(LAG_SIGNIFICANCE_Z * scatter_s);
+    let common_s = if every_lagged { balance_s } else { anchored_s };
+    let lag_at = |col: usize| common_s + contrast[col] - reference_tau_s;
+    let largest_s = (0..taps.len()).map(lag_at).fold(0.0, f64::max);
+    let members: Vec<usize> = (0..taps.len())
+        .filter(|&col| {
+            let se_s =
+                lags.standard_error_s.get(taps[col]).copied().unwrap_or(f64::INFINITY).hypot(own_se_of(taps[col]));
+            lag_at(col) >= MIN_CHANNEL_LAG_S.max(CHANNEL_LAG_Z * se_s).max(FOOTPRINT_SHARE * largest_s)
+        })
+        .collect();
+    if members.is_empty() {
+        return None;
+    }
+    let is_member = |col: usize| members.contains(&col);
+    // With every channel lagged, the balance fixes the shift the lags share; otherwise the
+    // healthy channels do.
+    let set_s =
+        if every_lagged { minimise(|shift_s| alignment.ssr(&shifted(shift_s, &is_member)), range) } else { common_s };
+    let taus = shifted(set_s, &is_member);
+    let lag_of = |col: usize| taus[col] - reference_tau_s;
+    let mean_lag_s = members.iter().map(|&col| lag_of(col)).sum::<f64>() / members.len() as f64;
+    if members.iter().any(|&col| lag_of(col) <= 0.0) {
+        return None;
+    }
+    let reference_taus = vec![reference_tau_s; taps.len()];
+    let ssr_reference = alignment.ssr(&reference_taus);
+    let n_eff = alignment.effective_samples(runs, &taus);
+    if n_eff < 2.0 || ssr_reference <= 0.0 {
+        return None;
+    }
+    let k = members.len();
+    // Two shifts fitted on the balance, and the choice of the channels, ln C(n, k).
+    let choice = (1..=k).map(|i| ((taps.len() - k + i) as f64 / i as f64).ln()).sum::<f64>();
+    let delta_bic =
+        n_eff * (ssr_reference / alignment.ssr(&taus).max(f64::MIN_POSITIVE)).ln() - 2.0 * n_eff.ln() - choice;
+    let member_taps: Vec<usize> = members.iter().map(|&col| taps[col]).collect();
+    let member_lags: Vec<f64> = members.iter().map(|&col| lag_of(col)).collect();
+    let (explained, _) = lags_deviation(runs, &member_taps, &member_lags, &|run| run.fit_samples().collect());
+    let noise_var = {
+        let mut differences = Vec::new();
+        for run in runs {
+            for &tap in &member_taps {
+                let cp = &run.cp[tap];
+                differences.extend(run.training.clone().skip(1).map(|i| cp[i] - cp[i - 1]).filter(|d| d.is_finite()));
+            }
+        }
+        regression::robust_difference_var(&mut differences)
+    };
+    let check = |part: &dyn Fn(&RunStreams) -> Vec<usize>| {
+        vector_part_check(&alignment, runs, part, &reference_taus, &taus, &member_taps, &member_lags)
+    };
+    let selection = confirmed(check(&|run| run.select.samples().collect()), explained);
+    let heldout = check(&|run| run.heldout.clone().collect()).gap;
+    let names: Vec<String> = member_taps.iter().map(|&tap| channel_name(tap)).collect();
+    let every = k == taps.len() && taps.len() == runs.first().map_or(0, |run| run.cp.len());
+    let mut params = vec![
+        ("tau_s".to_owned(), ParamValue::Number(mean_lag_s)),
+        ("channels".to_owned(), ParamValue::Text(if every { "all".into() } else { names.join(",") })),
+        ("reference_tau_s".to_owned(), ParamValue::Number(reference_tau_s)),
+    ];
+    for (name, lag_s) in names.iter().zip(&member_lags) {
+        params.push((format!("tau_s_{name}"), ParamValue::Number(*lag_s)));
+    }
+    Some(SensorFinding {
+        effect: firmware_sim::effect::Effect::PressureLag,
+        params,
+        channel: (names.len() == 1).then(|| names[0].clone()),
+        channels: names.clone(),
+        explained,
+        noise_var,
+        delta_bic,
+        heldout,
+        selection,
+        evidence: format!(
+            "the taps align with the balance moment once {} are de-lagged beyond the sim's own {:.1} ms ({})",
+            if every { "all channels".to_owned() } else { names.join(", ") },
+            1e3 * reference_tau_s,
+            names
+                .iter()
+                .zip(&member_lags)
+                .map(|(n, l)| format!("{n}: {:.1} ms", 1e3 * l))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+    })
+}
+
+/// [`lag_deviation`] with a time constant per channel: the mean square of `-tau_c y_c'` over the
+/// channels `taps` (lags `lags_s`) and the samples `part(run)` of every run, and their number.
+fn lags_deviation(
     runs: &[RunStreams],
     taps: &[usize],
+    lags_s: &[f64],
     part: &dyn Fn(&RunStreams) -> Vec<usize>,
-    tau_s: f64,
 ) -> (f64, usize) {
     let (mut sum, mut n) = (0.0, 0usize);
     for run in runs {
         let samples = part(run);
-        for &tap in taps {
+        for (&tap, &tau_s) in taps.iter().zip(lags_s) {
             for &idx in &samples {
                 let value = tau_s * run.cp_dot[tap][idx];
                 if value.is_finite() {
@@ -503,6 +643,33 @@ fn lag_deviation(
         }
     }
     (if n == 0 { 0.0 } else { sum / n as f64 }, n)
+}
+
+/// [`part_check`] with a time constant per channel: `before_s` and `after_s` per channel of the
+/// alignment, the deviation over the lagged channels `taps` with their lags `lags_s`.
+fn vector_part_check(
+    alignment: &Alignment,
+    runs: &[RunStreams],
+    part: &dyn Fn(&RunStreams) -> Vec<usize>,
+    before_s: &[f64],
+    after_s: &[f64],
+    taps: &[usize],
+    lags_s: &[f64],
+) -> PartCheck {
+    let (r0, r1) = alignment.paired_residuals(runs, part, before_s, after_s);
+    let (deviation, n) = lags_deviation(runs, taps, lags_s, part);
+    share_check(&r0, &r1, deviation, n)
+}
+
+/// Mean square of a lag's deviation from the true pressure, `-tau y'` (exact for a first-order
+/// lag), over the channels `taps` and the samples `part(run)` of every run, and their number.
+fn lag_deviation(
+    runs: &[RunStreams],
+    taps: &[usize],
+    part: &dyn Fn(&RunStreams) -> Vec<usize>,
+    tau_s: f64,
+) -> (f64, usize) {
+    lags_deviation(runs, taps, &vec![tau_s; taps.len()], part)
 }
 
 /// The common lag's gap on one part (selection or held out), in Cp, with nothing fitted there.
@@ -527,13 +694,20 @@ fn part_check(
 ) -> PartCheck {
     let n_taps = alignment.taps().len();
     let (r0, r1) = alignment.paired_residuals(runs, part, &vec![reference_tau_s; n_taps], &vec![shared_s; n_taps]);
+    let (deviation, n) = lag_deviation(runs, alignment.taps(), part, shared_s - reference_tau_s);
+    share_check(&r0, &r1, deviation, n)
+}
+
+/// The share of the training lag a part shows, from the balance residuals before (`r0`) and
+/// after (`r1`) the de-lag, and the gap it implies in Cp with `deviation`, the mean square of
+/// the training lag's deviation over the part's `n` samples ([`part_check`]).
+fn share_check(r0: &[f64], r1: &[f64], deviation: f64, n: usize) -> PartCheck {
     let (mut rd, mut dd) = (0.0, 0.0);
-    for (before, after) in r0.iter().zip(&r1) {
+    for (before, after) in r0.iter().zip(r1) {
         let d = before - after;
         rd += before * d;
         dd += d * d;
     }
-    let (deviation, n) = lag_deviation(runs, alignment.taps(), part, shared_s - reference_tau_s);
     if dd <= 0.0 || n == 0 {
         return PartCheck { gap: regression::HeldoutGap::EMPTY, share: f64::NAN, standard_error: f64::NAN };
     }
@@ -541,7 +715,7 @@ fn part_check(
     // The share's standard error: the variance of what the share leaves of `r0`, times its
     // integrated autocorrelation time, over `<d, d>` (as a balance candidate's calibration
     // slope, [`super::attribution::Slope`]).
-    let left: Vec<f64> = r0.iter().zip(&r1).map(|(before, after)| before - share * (before - after)).collect();
+    let left: Vec<f64> = r0.iter().zip(r1).map(|(before, after)| before - share * (before - after)).collect();
     let segment = Segment { residual: &left, training: 0..left.len(), select: Interleave::default(), heldout: 0..0 };
     let left_var = left.iter().map(|v| v * v).sum::<f64>() / left.len().max(1) as f64;
     let autocorrelation = regression::integrated_autocorrelation(std::slice::from_ref(&segment), 200);
@@ -678,6 +852,72 @@ mod tests {
             .collect();
         run.cl_measured = balance;
         run
+    }
+
+    /// [`run`] with what the other channels expect of each known: the true pressure (the
+    /// filter without a channel then expects it exactly, whatever the others read).
+    fn run_known(seed: u64, taus_s: &[f64; TAPS]) -> RunStreams {
+        let mut run = run(seed, taus_s);
+        run.innovation_alone = (0..TAPS)
+            .map(|tap| run.cp[tap].iter().enumerate().map(|(i, y)| y - pressure(tap, i as f64 / HZ, 0.0)).collect())
+            .collect();
+        run
+    }
+
+    fn lags_of(found: &SensorFinding) -> Vec<(String, f64)> {
+        found
+            .params
+            .iter()
+            .filter_map(|(key, value)| match value {
+                ParamValue::Number(tau) => key.strip_prefix("tau_s_").map(|channel| (channel.to_owned(), *tau)),
+                ParamValue::Text(_) => None,
+            })
+            .collect()
+    }
+
+    /// The contract's lag of any set of channels, each with its own time constant: a lag of four
+    /// channels (25 to 60 ms) and one of nine (20 to 45 ms) are named with exactly their
+    /// channels, each time constant within 20 %.
+    #[test]
+    fn a_lag_of_any_set_of_channels_is_named_with_exactly_those_channels_and_their_own_taus() {
+        let four = [0.04, 0.0, 0.025, 0.0, 0.0, 0.06, 0.0, 0.0, 0.03, 0.0, 0.0, 0.0];
+        let nine = [0.02, 0.03, 0.0, 0.045, 0.025, 0.0, 0.035, 0.02, 0.03, 0.04, 0.0, 0.025];
+        for (label, taus) in [("four", four), ("nine", nine)] {
+            let runs: Vec<RunStreams> = (10..13).map(|seed| run_known(seed, &taus)).collect();
+            let lags = crate::diagnose::lag_set::identify(&runs).expect("relative lags");
+            let found = set_finding(&runs, 0.0, &lags, None).expect("a lag");
+            let expected: Vec<String> = (0..TAPS).filter(|&tap| taus[tap] > 0.0).map(channel_name).collect();
+            assert_eq!(found.channels, expected, "{label}: {}", found.evidence);
+            for (channel, tau) in lags_of(&found) {
+                let truth = taus[channel[2..].parse::<usize>().expect("a channel number") - 1];
+                assert!((tau - truth).abs() <= 0.2 * truth, "{label}: {channel} {tau} against {truth}");
+            }
+        }
+    }
+
+    /// With every channel lagged, the innovations see no difference and the balance fixes the
+    /// lag they share: all twelve named, each within 20 %.
+    #[test]
+    fn a_lag_of_every_channel_with_its_own_tau_is_named_on_all_twelve() {
+        let taus = [0.03, 0.035, 0.04, 0.03, 0.045, 0.035, 0.03, 0.04, 0.035, 0.03, 0.04, 0.045];
+        let runs: Vec<RunStreams> = (20..23).map(|seed| run_known(seed, &taus)).collect();
+        let lags = crate::diagnose::lag_set::identify(&runs).expect("relative lags");
+        let found = set_finding(&runs, 0.0, &lags, None).expect("a lag");
+        assert_eq!(found.channels.len(), TAPS, "{}", found.evidence);
+        for (channel, tau) in lags_of(&found) {
+            let truth = taus[channel[2..].parse::<usize>().expect("a channel number") - 1];
+            assert!((tau - truth).abs() <= 0.2 * truth, "{channel} {tau} against {truth}");
+        }
+    }
+
+    /// A clean recording has no set: no channel's lag stands out and the balance shows none.
+    #[test]
+    fn a_clean_recording_has_no_lagged_set() {
+        let runs: Vec<RunStreams> = (30..33).map(|seed| run_known(seed, &[0.0; TAPS])).collect();
+        let lags = crate::diagnose::lag_set::identify(&runs).expect("relative lags");
+        assert!(lags.relative_s.iter().all(|lag| lag.abs() < MIN_CHANNEL_LAG_S), "{:?}", lags.relative_s);
+        let found = set_finding(&runs, 0.0, &lags, None);
+        assert!(found.is_none(), "{:?}", found.map(|f| f.evidence));
     }
 
     #[test]

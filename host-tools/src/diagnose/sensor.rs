@@ -73,7 +73,7 @@ pub fn channel_name(tap: usize) -> String {
 /// Every sensor finding, strongest first ([`scan`]'s ranked findings).
 #[must_use]
 pub fn findings(runs: &[RunStreams], reference: impl Into<super::pressure_lag::Reference>) -> Vec<SensorFinding> {
-    scan(runs, reference).ranked
+    scan(runs, reference, None).ranked
 }
 
 /// What the sensor families find.
@@ -93,7 +93,11 @@ pub struct Findings {
 /// Every sensor finding, and the lag of each channel alone. `reference` is the sim's own
 /// alignment of the taps with the balance and its scatter ([`super::pressure_lag::finding`]).
 #[must_use]
-pub fn scan(runs: &[RunStreams], reference: impl Into<super::pressure_lag::Reference>) -> Findings {
+pub fn scan(
+    runs: &[RunStreams],
+    reference: impl Into<super::pressure_lag::Reference>,
+    own_channel_lags: Option<&super::lag_set::ChannelLags>,
+) -> Findings {
     let reference = reference.into();
     let reference_tau_s = reference.tau_s;
     let Some(first) = runs.first().filter(|run| !run.cp.is_empty()) else { return Findings::default() };
@@ -109,7 +113,33 @@ pub fn scan(runs: &[RunStreams], reference: impl Into<super::pressure_lag::Refer
     // without lag, tells the two apart. Only a lag the alignment finds at all (the least effect
     // to name) can be common.
     let common_lag = alignment.as_ref().filter(|finding| strength(finding) >= least_strength());
-    if let (Some(_), Some(group)) = (common_lag, some.first().filter(|finding| finding.channels.len() < n_taps)) {
+    // A lag the alignment finds may be of some channels or of all: each channel's own, from
+    // how the channels' lags differ and the lag they share, names the set and each time
+    // constant ([`super::pressure_lag::set_finding`]).
+    // The full search runs where a lag shows at all: the alignment's, a group's, or a first
+    // step that moves a channel beyond the sim's own by the least lag of a set.
+    let first_step_shows = || {
+        // Without the sim's own first step (a signature written before it was kept), the
+        // pressure model's own differences would pass for a lag on every recording.
+        let Some(own) = own_channel_lags.filter(|own| !own.first_step_s.is_empty()) else { return false };
+        let first = super::lag_set::first_step(runs);
+        let deviation: Vec<f64> =
+            first.iter().enumerate().map(|(tap, v)| v - own.first_step_s.get(tap).copied().unwrap_or(0.0)).collect();
+        let (low, high) = deviation.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| (l.min(*v), h.max(*v)));
+        high - low >= super::pressure_lag::MIN_CHANNEL_LAG_S
+    };
+    if (common_lag.is_some() || !some.is_empty() || first_step_shows())
+        && let Some(set) = super::lag_set::identify(runs)
+            .and_then(|lags| super::pressure_lag::set_finding(runs, reference, &lags, own_channel_lags))
+    {
+        // The group the innovations found stays a candidate beside it: where the balance cannot
+        // confirm a lag on the selection part (a rig the sim fits poorly), the innovations can.
+        if some.first().is_some_and(|group| group.channels == set.channels) {
+            some.clear();
+        }
+        alignment = Some(set);
+    } else if let (Some(_), Some(group)) = (common_lag, some.first().filter(|finding| finding.channels.len() < n_taps))
+    {
         let taps: Vec<usize> = (0..n_taps).filter(|tap| group.channels.contains(&channel_name(*tap))).collect();
         if super::pressure_lag::lag_is_common(runs, &taps, reference_tau_s) {
             some.clear();
@@ -130,6 +160,13 @@ impl SensorFinding {
     pub fn floor_key(&self) -> String {
         format!("{}:{}", self.effect, self.channels.join("+"))
     }
+}
+
+/// Whether a finding is a lag found on the balance ([`super::pressure_lag`]: the taps
+/// re-aligned with the balance moment), not on the innovations alone.
+#[must_use]
+pub fn is_balance_lag(finding: &SensorFinding) -> bool {
+    finding.effect == Effect::PressureLag && finding.params.iter().any(|(key, _)| key == "reference_tau_s")
 }
 
 /// Strength of a finding in noise units: explained mean square over the noise variance.

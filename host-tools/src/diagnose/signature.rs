@@ -35,6 +35,11 @@ pub struct Signature {
     /// own alignments ([`super::pressure_lag::run_scatter_s`]).
     #[serde(default)]
     pub pressure_alignment_scatter_s: Option<f64>,
+    /// How each pressure channel's apparent lag differs from the others' on data the sim
+    /// matches, and the standard errors ([`super::lag_set::identify`]): the pressure model's own
+    /// error per channel; a channel's lag counts beyond it.
+    #[serde(default)]
+    pub pressure_channel_lags: Option<super::lag_set::ChannelLags>,
 }
 
 /// File name of a model's signature in its folder.

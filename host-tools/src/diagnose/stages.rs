@@ -314,11 +314,25 @@ impl SensorAttribution {
                 tau_s: floor.pressure_alignment_s.unwrap_or(0.0),
                 scatter_s: floor.pressure_alignment_scatter_s.unwrap_or(0.0),
             },
+            floor.pressure_channel_lags.as_ref(),
         );
-        let named = findings
+        let qualifying: Vec<&SensorFinding> = findings
             .iter()
             .filter(|f| Self::qualifies(f, floor))
             .filter(|f| Self::stands_out(f, &findings, floor))
+            .collect();
+        // A lag the balance confirms names its whole set: a group the innovations found within
+        // it is part of the same lag (what the filter without the group sees of a large set).
+        let confirmed_set = qualifying.iter().find(|f| sensor::is_balance_lag(f)).map(|f| f.channels.clone());
+        let named = qualifying
+            .into_iter()
+            .filter(|f| {
+                confirmed_set.as_ref().is_none_or(|set| {
+                    sensor::is_balance_lag(f)
+                        || f.effect != firmware_sim::effect::Effect::PressureLag
+                        || !f.channels.iter().all(|channel| set.contains(channel))
+                })
+            })
             .max_by(|a, b| Self::excess_of(a, floor).total_cmp(&Self::excess_of(b, floor)))
             .cloned();
         Self { findings, channel_lags, named }

@@ -135,6 +135,35 @@ impl RunStreams {
         }
     }
 
+    /// Each channel's one-step innovation from the filter run without it, on the readings `cp`
+    /// (one series per channel, as [`Self::cp`]) instead of the recorded ones: what the other
+    /// channels, read as `cp`, expect of each (as [`Self::innovation_alone`] for the recording).
+    #[must_use]
+    pub fn innovations_alone_on(&self, cp: &[Vec<f64>]) -> Vec<Vec<f64>> {
+        use rayon::prelude::*;
+        match &self.replay {
+            PressureReplay::Filter { model, phi_dot_rad_s } => {
+                let inputs =
+                    FilterInputs { phi_rad: &self.phi_rad, phi_dot_rad_s, cmu: &self.cmu, alpha_deg: self.alpha_deg };
+                (0..cp.len())
+                    .into_par_iter()
+                    .map(|tap| {
+                        let left_out: Vec<bool> = (0..cp.len()).map(|other| other == tap).collect();
+                        innovations(model, &inputs, cp, &left_out).swap_remove(tap)
+                    })
+                    .collect()
+            }
+            // The expectation is the recording's whatever the readings: the recorded reading less
+            // its innovation.
+            #[cfg(test)]
+            PressureReplay::Known => cp
+                .iter()
+                .zip(self.cp.iter().zip(&self.innovation_alone))
+                .map(|(new, (old, nu))| new.iter().zip(old.iter().zip(nu)).map(|(n, (o, v))| n - (o - v)).collect())
+                .collect(),
+        }
+    }
+
     /// The roll acceleration smoothed at `corner_hz`, one of [`MODE_DRIVE_CORNERS_HZ`] (`None`
     /// for another corner).
     #[must_use]
@@ -279,19 +308,7 @@ fn build_run(run: &Run, set: &CoefficientSet, split: &Split) -> RunStreams {
             innovations(&model, &inputs, &cp, &left_out).swap_remove(tap)
         })
         .collect();
-    let cp_dot = cp
-        .iter()
-        .map(|channel| {
-            let smooth = zero_phase_lowpass_extended(channel, PRESSURE_CORNER_HZ.min(0.4 * sample_hz), sample_hz);
-            let mut derivative = central_difference(&smooth, dt_s);
-            for (value, raw) in derivative.iter_mut().zip(channel) {
-                if !raw.is_finite() {
-                    *value = f64::NAN;
-                }
-            }
-            derivative
-        })
-        .collect();
+    let cp_dot = cp.iter().map(|channel| pressure_derivative(channel, sample_hz)).collect();
 
     RunStreams {
         file: run.meta.file.display().to_string(),
@@ -368,6 +385,21 @@ fn innovations(model: &PressureTable, inputs: &FilterInputs<'_>, cp: &[Vec<f64>]
         }
     }
     out
+}
+
+/// The smoothed time derivative of one pressure channel, 1/s: zero-phase smoothed at
+/// [`PRESSURE_CORNER_HZ`], then central differences (NaN where the channel is missing). The
+/// regressor of a tubing lag, `p = y + tau y'` ([`RunStreams::cp_dot`]).
+#[must_use]
+pub fn pressure_derivative(channel: &[f64], sample_hz: f64) -> Vec<f64> {
+    let smooth = zero_phase_lowpass_extended(channel, PRESSURE_CORNER_HZ.min(0.4 * sample_hz), sample_hz);
+    let mut derivative = central_difference(&smooth, 1.0 / sample_hz);
+    for (value, raw) in derivative.iter_mut().zip(channel) {
+        if !raw.is_finite() {
+            *value = f64::NAN;
+        }
+    }
+    derivative
 }
 
 /// The roll acceleration of `phi_rad`, rad/s^2: the angle smoothed without phase at `corner_hz`
