@@ -45,7 +45,7 @@ pub struct ChannelLags {
 #[must_use]
 pub fn first_step(runs: &[RunStreams]) -> Vec<f64> {
     let Some(n_taps) = runs.first().map(|run| run.cp.len()) else { return Vec::new() };
-    centred_steps(&slope_sums(runs, &vec![0.0; n_taps]), None).into_iter().map(|v| v.unwrap_or(0.0)).collect()
+    centred_steps(&slope_sums(runs, &vec![0.0; n_taps]).0, None).into_iter().map(|v| v.unwrap_or(0.0)).collect()
 }
 
 /// Per channel, the step of the pooled sums (the run `left_out` left out), less the mean step
@@ -58,6 +58,17 @@ fn centred_steps(sums: &[Vec<(f64, f64)>], left_out: Option<usize>) -> Vec<Optio
     let known: Vec<f64> = steps.iter().flatten().copied().collect();
     let common_s = known.iter().sum::<f64>() / known.len().max(1) as f64;
     steps.into_iter().map(|step| step.map(|v| v - common_s)).collect()
+}
+
+/// Per run, per channel: the channel's innovation from the filter without it, the other
+/// channels read through their de-lag and the channel itself as recorded (its whole lag shows).
+pub type Judged = Vec<Vec<Vec<f64>>>;
+
+/// Every channel judged with the others de-lagged by `lag_s` (s, per channel; 0 for a healthy
+/// one): where a set's lag is measured, since what the others expect is then the true pressure.
+#[must_use]
+pub fn judged(runs: &[RunStreams], lag_s: &[f64]) -> Judged {
+    slope_sums(runs, lag_s).1
 }
 
 /// Every channel's lag relative to the others, by repeated de-lag and re-judge steps from none;
@@ -73,7 +84,7 @@ pub fn identify(runs: &[RunStreams]) -> Option<ChannelLags> {
     let mut sums = Vec::new();
     let mut first_step_s = Vec::new();
     for _ in 0..MAX_PASSES {
-        sums = slope_sums(runs, &relative_s);
+        (sums, _) = slope_sums(runs, &relative_s);
         let steps = centred_steps(&sums, None);
         if first_step_s.is_empty() {
             first_step_s = steps.iter().map(|v| v.unwrap_or(0.0)).collect();
@@ -115,9 +126,10 @@ fn slope(sums: impl Iterator<Item = (f64, f64)>) -> Option<f64> {
 
 /// Per run, per channel, with every channel de-lagged by `lag_s` (s): the sums `(sum x nu,
 /// sum x^2)` over the fit samples of the channel's innovation from the filter without it, `nu`,
-/// and the reading's falling derivative, `x = -dy/dt` ([`RunStreams::cp_dot`]), each centred per run (the
-/// innovation's level is a bias, not a lag). Their ratio is what is left of the channel's lag.
-fn slope_sums(runs: &[RunStreams], lag_s: &[f64]) -> Vec<Vec<(f64, f64)>> {
+/// and the reading's falling derivative, `x = -dy/dt` ([`RunStreams::cp_dot`]), each centred
+/// per run (the innovation's level is a bias, not a lag): their ratio is what is left of the
+/// channel's lag. And the innovations with each channel's own de-lag taken back ([`Judged`]).
+fn slope_sums(runs: &[RunStreams], lag_s: &[f64]) -> (Vec<Vec<(f64, f64)>>, Judged) {
     let n_taps = lag_s.len();
     runs.iter()
         .map(|run| {
@@ -131,7 +143,7 @@ fn slope_sums(runs: &[RunStreams], lag_s: &[f64]) -> Vec<Vec<(f64, f64)>> {
                 run.innovations_alone_on(&corrected)
             };
             let samples: Vec<usize> = run.fit_samples().collect();
-            (0..n_taps)
+            let sums = (0..n_taps)
                 .map(|tap| {
                     let pairs: Vec<(f64, f64)> = samples
                         .iter()
@@ -148,7 +160,16 @@ fn slope_sums(runs: &[RunStreams], lag_s: &[f64]) -> Vec<Vec<(f64, f64)>> {
                         (acc.0 + (x - mean_x) * (nu - mean_nu), acc.1 + (x - mean_x) * (x - mean_x))
                     })
                 })
-                .collect()
+                .collect();
+            // The filter without a channel does not read it, so taking its own de-lag back off
+            // its innovation is exact.
+            let judged = innovations
+                .iter()
+                .zip(&run.cp_dot)
+                .zip(lag_s)
+                .map(|((nu, dy), lag)| nu.iter().zip(dy).map(|(v, d)| v - lag * d).collect())
+                .collect();
+            (sums, judged)
         })
-        .collect()
+        .unzip()
 }

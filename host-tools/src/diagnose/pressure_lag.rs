@@ -497,24 +497,22 @@ const FOOTPRINT_SHARE: f64 = 0.3;
 /// Standard errors a channel's lag must stand above zero to count as lagged.
 const CHANNEL_LAG_Z: f64 = 3.0;
 
-/// The `pressure_lag` finding of a set of channels, each with its own time constant: how the
-/// channels' lags differ is the innovations' (`lags`, [`super::lag_set::identify`], less the
-/// sim's own differences on the data it was fitted on, `own`), and the lag they share is the
-/// balance's, which reads the pressures without lag. The common shift is fitted on the balance
-/// with every channel's difference fixed; the channels whose lag stands above zero
-/// ([`MIN_CHANNEL_LAG_S`], [`CHANNEL_LAG_Z`] standard errors) are the set; the set's shift is
-/// fitted again with the others at the sim's own alignment. `None` without a set, or when its
-/// mean lag is within the scatter of both alignments (as [`finding`]'s).
-///
-/// Fitted on the training part only (the innovations' slopes and the balance's shifts and
-/// weights); the selection and held-out parts are judged with everything fixed (`part_check`).
+/// The lagged channels of a set and each one's lag beyond the sim's own, s (0-based taps): how
+/// the channels' lags differ is the innovations' (`lags`, [`super::lag_set::identify`], less
+/// the sim's own differences on the data it was fitted on, `own`); the lag they share is taken
+/// from the least lagged channel, as healthy, unless the balance, which reads the pressures
+/// without lag, shows beyond the scatter of both alignments that every channel is lagged. A
+/// channel is in the set when its lag stands above zero ([`MIN_CHANNEL_LAG_S`],
+/// [`CHANNEL_LAG_Z`] standard errors, [`FOOTPRINT_SHARE`] of the largest). `None` without a set.
+/// Fitted on the training part only; the set's evidence is the innovations'
+/// ([`super::sensor`]).
 #[must_use]
-pub fn set_finding(
+pub fn channel_set(
     runs: &[RunStreams],
     reference: impl Into<Reference>,
     lags: &super::lag_set::ChannelLags,
     own: Option<&super::lag_set::ChannelLags>,
-) -> Option<SensorFinding> {
+) -> Option<Vec<(usize, f64)>> {
     let reference = reference.into();
     let reference_tau_s = reference.tau_s;
     let alignment = Alignment::new(runs, |run| run.fit_samples().collect())?;
@@ -554,111 +552,7 @@ pub fn set_finding(
         if every_lagged { minimise(|shift_s| alignment.ssr(&shifted(shift_s, &is_member)), range) } else { common_s };
     let taus = shifted(set_s, &is_member);
     let lag_of = |col: usize| taus[col] - reference_tau_s;
-    let mean_lag_s = members.iter().map(|&col| lag_of(col)).sum::<f64>() / members.len() as f64;
-    if members.iter().any(|&col| lag_of(col) <= 0.0) {
-        return None;
-    }
-    let reference_taus = vec![reference_tau_s; taps.len()];
-    let ssr_reference = alignment.ssr(&reference_taus);
-    let n_eff = alignment.effective_samples(runs, &taus);
-    if n_eff < 2.0 || ssr_reference <= 0.0 {
-        return None;
-    }
-    let k = members.len();
-    // Two shifts fitted on the balance, and the choice of the channels, ln C(n, k).
-    let choice = (1..=k).map(|i| ((taps.len() - k + i) as f64 / i as f64).ln()).sum::<f64>();
-    let delta_bic =
-        n_eff * (ssr_reference / alignment.ssr(&taus).max(f64::MIN_POSITIVE)).ln() - 2.0 * n_eff.ln() - choice;
-    let member_taps: Vec<usize> = members.iter().map(|&col| taps[col]).collect();
-    let member_lags: Vec<f64> = members.iter().map(|&col| lag_of(col)).collect();
-    let (explained, _) = lags_deviation(runs, &member_taps, &member_lags, &|run| run.fit_samples().collect());
-    let noise_var = {
-        let mut differences = Vec::new();
-        for run in runs {
-            for &tap in &member_taps {
-                let cp = &run.cp[tap];
-                differences.extend(run.training.clone().skip(1).map(|i| cp[i] - cp[i - 1]).filter(|d| d.is_finite()));
-            }
-        }
-        regression::robust_difference_var(&mut differences)
-    };
-    let check = |part: &dyn Fn(&RunStreams) -> Vec<usize>| {
-        vector_part_check(&alignment, runs, part, &reference_taus, &taus, &member_taps, &member_lags)
-    };
-    let selection = confirmed(check(&|run| run.select.samples().collect()), explained);
-    let heldout = check(&|run| run.heldout.clone().collect()).gap;
-    let names: Vec<String> = member_taps.iter().map(|&tap| channel_name(tap)).collect();
-    let every = k == taps.len() && taps.len() == runs.first().map_or(0, |run| run.cp.len());
-    let mut params = vec![
-        ("tau_s".to_owned(), ParamValue::Number(mean_lag_s)),
-        ("channels".to_owned(), ParamValue::Text(if every { "all".into() } else { names.join(",") })),
-        ("reference_tau_s".to_owned(), ParamValue::Number(reference_tau_s)),
-    ];
-    for (name, lag_s) in names.iter().zip(&member_lags) {
-        params.push((format!("tau_s_{name}"), ParamValue::Number(*lag_s)));
-    }
-    Some(SensorFinding {
-        effect: firmware_sim::effect::Effect::PressureLag,
-        params,
-        channel: (names.len() == 1).then(|| names[0].clone()),
-        channels: names.clone(),
-        explained,
-        noise_var,
-        delta_bic,
-        heldout,
-        selection,
-        evidence: format!(
-            "the taps align with the balance moment once {} are de-lagged beyond the sim's own {:.1} ms ({})",
-            if every { "all channels".to_owned() } else { names.join(", ") },
-            1e3 * reference_tau_s,
-            names
-                .iter()
-                .zip(&member_lags)
-                .map(|(n, l)| format!("{n}: {:.1} ms", 1e3 * l))
-                .collect::<Vec<_>>()
-                .join(", ")
-        ),
-    })
-}
-
-/// [`lag_deviation`] with a time constant per channel: the mean square of `-tau_c y_c'` over the
-/// channels `taps` (lags `lags_s`) and the samples `part(run)` of every run, and their number.
-fn lags_deviation(
-    runs: &[RunStreams],
-    taps: &[usize],
-    lags_s: &[f64],
-    part: &dyn Fn(&RunStreams) -> Vec<usize>,
-) -> (f64, usize) {
-    let (mut sum, mut n) = (0.0, 0usize);
-    for run in runs {
-        let samples = part(run);
-        for (&tap, &tau_s) in taps.iter().zip(lags_s) {
-            for &idx in &samples {
-                let value = tau_s * run.cp_dot[tap][idx];
-                if value.is_finite() {
-                    sum += value * value;
-                    n += 1;
-                }
-            }
-        }
-    }
-    (if n == 0 { 0.0 } else { sum / n as f64 }, n)
-}
-
-/// [`part_check`] with a time constant per channel: `before_s` and `after_s` per channel of the
-/// alignment, the deviation over the lagged channels `taps` with their lags `lags_s`.
-fn vector_part_check(
-    alignment: &Alignment,
-    runs: &[RunStreams],
-    part: &dyn Fn(&RunStreams) -> Vec<usize>,
-    before_s: &[f64],
-    after_s: &[f64],
-    taps: &[usize],
-    lags_s: &[f64],
-) -> PartCheck {
-    let (r0, r1) = alignment.paired_residuals(runs, part, before_s, after_s);
-    let (deviation, n) = lags_deviation(runs, taps, lags_s, part);
-    share_check(&r0, &r1, deviation, n)
+    members.iter().all(|&col| lag_of(col) > 0.0).then(|| members.iter().map(|&col| (taps[col], lag_of(col))).collect())
 }
 
 /// Mean square of a lag's deviation from the true pressure, `-tau y'` (exact for a first-order
@@ -669,7 +563,20 @@ fn lag_deviation(
     part: &dyn Fn(&RunStreams) -> Vec<usize>,
     tau_s: f64,
 ) -> (f64, usize) {
-    lags_deviation(runs, taps, &vec![tau_s; taps.len()], part)
+    let (mut sum, mut n) = (0.0, 0usize);
+    for run in runs {
+        let samples = part(run);
+        for &tap in taps {
+            for &idx in &samples {
+                let value = tau_s * run.cp_dot[tap][idx];
+                if value.is_finite() {
+                    sum += value * value;
+                    n += 1;
+                }
+            }
+        }
+    }
+    (if n == 0 { 0.0 } else { sum / n as f64 }, n)
 }
 
 /// The common lag's gap on one part (selection or held out), in Cp, with nothing fitted there.
@@ -864,50 +771,55 @@ mod tests {
         run
     }
 
-    fn lags_of(found: &SensorFinding) -> Vec<(String, f64)> {
-        found
-            .params
-            .iter()
-            .filter_map(|(key, value)| match value {
-                ParamValue::Number(tau) => key.strip_prefix("tau_s_").map(|channel| (channel.to_owned(), *tau)),
-                ParamValue::Text(_) => None,
-            })
-            .collect()
+    /// The set of `runs`: its channels and their lags, s.
+    fn set_of(runs: &[RunStreams]) -> Option<Vec<(usize, f64)>> {
+        let lags = crate::diagnose::lag_set::identify(runs).expect("relative lags");
+        channel_set(runs, 0.0, &lags, None)
     }
 
     /// The contract's lag of any set of channels, each with its own time constant: a lag of four
-    /// channels (25 to 60 ms) and one of nine (20 to 45 ms) are named with exactly their
-    /// channels, each time constant within 20 %.
+    /// channels (25 to 60 ms) and one of nine (20 to 45 ms) are found on exactly their channels,
+    /// each time constant within 20 %.
     #[test]
-    fn a_lag_of_any_set_of_channels_is_named_with_exactly_those_channels_and_their_own_taus() {
+    fn a_lag_of_any_set_of_channels_is_found_on_exactly_those_channels_with_their_own_taus() {
         let four = [0.04, 0.0, 0.025, 0.0, 0.0, 0.06, 0.0, 0.0, 0.03, 0.0, 0.0, 0.0];
         let nine = [0.02, 0.03, 0.0, 0.045, 0.025, 0.0, 0.035, 0.02, 0.03, 0.04, 0.0, 0.025];
         for (label, taus) in [("four", four), ("nine", nine)] {
             let runs: Vec<RunStreams> = (10..13).map(|seed| run_known(seed, &taus)).collect();
-            let lags = crate::diagnose::lag_set::identify(&runs).expect("relative lags");
-            let found = set_finding(&runs, 0.0, &lags, None).expect("a lag");
-            let expected: Vec<String> = (0..TAPS).filter(|&tap| taus[tap] > 0.0).map(channel_name).collect();
-            assert_eq!(found.channels, expected, "{label}: {}", found.evidence);
-            for (channel, tau) in lags_of(&found) {
-                let truth = taus[channel[2..].parse::<usize>().expect("a channel number") - 1];
-                assert!((tau - truth).abs() <= 0.2 * truth, "{label}: {channel} {tau} against {truth}");
+            let set = set_of(&runs).expect("a set");
+            let channels: Vec<usize> = set.iter().map(|(tap, _)| *tap).collect();
+            assert_eq!(channels, (0..TAPS).filter(|&tap| taus[tap] > 0.0).collect::<Vec<_>>(), "{label}: {set:?}");
+            for (tap, tau) in set {
+                assert!((tau - taus[tap]).abs() <= 0.2 * taus[tap], "{label}: tap {tap} {tau} against {}", taus[tap]);
             }
         }
     }
 
     /// With every channel lagged, the innovations see no difference and the balance fixes the
-    /// lag they share: all twelve named, each within 20 %.
+    /// lag they share: all twelve found, each within 20 %.
     #[test]
-    fn a_lag_of_every_channel_with_its_own_tau_is_named_on_all_twelve() {
+    fn a_lag_of_every_channel_with_its_own_tau_is_found_on_all_twelve() {
         let taus = [0.03, 0.035, 0.04, 0.03, 0.045, 0.035, 0.03, 0.04, 0.035, 0.03, 0.04, 0.045];
         let runs: Vec<RunStreams> = (20..23).map(|seed| run_known(seed, &taus)).collect();
-        let lags = crate::diagnose::lag_set::identify(&runs).expect("relative lags");
-        let found = set_finding(&runs, 0.0, &lags, None).expect("a lag");
-        assert_eq!(found.channels.len(), TAPS, "{}", found.evidence);
-        for (channel, tau) in lags_of(&found) {
-            let truth = taus[channel[2..].parse::<usize>().expect("a channel number") - 1];
-            assert!((tau - truth).abs() <= 0.2 * truth, "{channel} {tau} against {truth}");
+        let set = set_of(&runs).expect("a set");
+        assert_eq!(set.len(), TAPS, "{set:?}");
+        for (tap, tau) in set {
+            assert!((tau - taus[tap]).abs() <= 0.2 * taus[tap], "tap {tap} {tau} against {}", taus[tap]);
         }
+    }
+
+    /// The sensor scan names a lag of nine channels on those nine, its evidence measured on the
+    /// innovations with the other channels de-lagged: there the members' whole lag shows.
+    #[test]
+    fn the_scan_names_a_lag_of_nine_channels_on_exactly_those_nine() {
+        let taus = [0.02, 0.03, 0.0, 0.045, 0.025, 0.0, 0.035, 0.02, 0.03, 0.04, 0.0, 0.025];
+        let runs: Vec<RunStreams> = (40..43).map(|seed| run_known(seed, &taus)).collect();
+        let findings = crate::diagnose::sensor::findings(&runs, 0.0);
+        let lag =
+            findings.iter().find(|f| f.effect == firmware_sim::effect::Effect::PressureLag).expect("a lag finding");
+        let expected: Vec<String> = (0..TAPS).filter(|&tap| taus[tap] > 0.0).map(channel_name).collect();
+        assert_eq!(lag.channels, expected, "{}", lag.evidence);
+        assert!(lag.selection.removed() > 0.25 * lag.noise_var, "{:?}", lag.selection);
     }
 
     /// A clean recording has no set: no channel's lag stands out and the balance shows none.
@@ -916,8 +828,7 @@ mod tests {
         let runs: Vec<RunStreams> = (30..33).map(|seed| run_known(seed, &[0.0; TAPS])).collect();
         let lags = crate::diagnose::lag_set::identify(&runs).expect("relative lags");
         assert!(lags.relative_s.iter().all(|lag| lag.abs() < MIN_CHANNEL_LAG_S), "{:?}", lags.relative_s);
-        let found = set_finding(&runs, 0.0, &lags, None);
-        assert!(found.is_none(), "{:?}", found.map(|f| f.evidence));
+        assert_eq!(channel_set(&runs, 0.0, &lags, None), None);
     }
 
     #[test]

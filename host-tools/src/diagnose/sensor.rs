@@ -129,8 +129,14 @@ pub fn scan(
         high - low >= super::pressure_lag::MIN_CHANNEL_LAG_S
     };
     if (common_lag.is_some() || !some.is_empty() || first_step_shows())
-        && let Some(set) = super::lag_set::identify(runs)
-            .and_then(|lags| super::pressure_lag::set_finding(runs, reference, &lags, own_channel_lags))
+        && let Some(set) = super::lag_set::identify(runs).and_then(|lags| {
+            let set = super::pressure_lag::channel_set(runs, reference, &lags, own_channel_lags)?;
+            let mut lag_s = vec![0.0; n_taps];
+            for &(tap, lag) in &set {
+                lag_s[tap] = lag;
+            }
+            set_finding(runs, &super::lag_set::judged(runs, &lag_s), &set, n_taps, reference_tau_s)
+        })
     {
         // The group the innovations found stays a candidate beside it: where the balance cannot
         // confirm a lag on the selection part (a rig the sim fits poorly), the innovations can.
@@ -162,10 +168,11 @@ impl SensorFinding {
     }
 }
 
-/// Whether a finding is a lag found on the balance ([`super::pressure_lag`]: the taps
-/// re-aligned with the balance moment), not on the innovations alone.
+/// Whether a finding is a lag of a whole set: the common lag, or every channel's own lag
+/// ([`super::lag_set`], its shared part from the healthy channels or the balance), not a group
+/// found on the innovations alone (marked by the sim's own alignment among its parameters).
 #[must_use]
-pub fn is_balance_lag(finding: &SensorFinding) -> bool {
+pub fn is_set_lag(finding: &SensorFinding) -> bool {
     finding.effect == Effect::PressureLag && finding.params.iter().any(|(key, _)| key == "reference_tau_s")
 }
 
@@ -329,6 +336,35 @@ fn lag_findings<'a>(
     // The choice of the channels costs ln C(n, k).
     finding.delta_bic -= (1..=lagged.len()).map(|i| ((n_taps - lagged.len() + i) as f64 / i as f64).ln()).sum::<f64>();
     vec![finding]
+}
+
+/// The finding of a lagged set (`set`: each channel and its lag, s), judged on the innovations
+/// of each member with every other channel de-lagged (`judged`, [`super::lag_set::Judged`]):
+/// one column per member at its own time constant, pooled, as a group's
+/// ([`lag_findings`]). `reference_tau_s` (the sim's own alignment) marks it as a whole set
+/// ([`is_set_lag`]).
+fn set_finding(
+    runs: &[RunStreams],
+    judged: &super::lag_set::Judged,
+    set: &[(usize, f64)],
+    n_taps: usize,
+    reference_tau_s: f64,
+) -> Option<SensorFinding> {
+    let judged: Judged<'_> = judged.iter().map(|run| run.iter().map(Vec::as_slice).collect()).collect();
+    let (mut segments, mut columns) = (Vec::new(), Vec::new());
+    for (slot, &(tap, tau_s)) in set.iter().enumerate() {
+        segments.extend(segments_judged(runs, &judged, tap));
+        columns.extend(runs.iter().zip(&judged).map(|(run, innovations)| {
+            let own = lag_column(run, innovations[tap], tap, tau_s);
+            (0..set.len()).map(|s| if s == slot { own.clone() } else { vec![0.0; own.len()] }).collect::<Vec<_>>()
+        }));
+    }
+    let fit = regression::fit_through_origin(&segments, &columns)?;
+    let mut finding = lag_finding(&segments, &columns, &fit, set, 2 * set.len());
+    // The choice of the channels costs ln C(n, k).
+    finding.delta_bic -= (1..=set.len()).map(|i| ((n_taps - set.len() + i) as f64 / i as f64).ln()).sum::<f64>();
+    finding.params.push(("reference_tau_s".to_owned(), ParamValue::Number(reference_tau_s)));
+    Some(finding)
 }
 
 /// The key of a lag of `channel` alone in the sim's signature ([`Findings::channel_lags`]).

@@ -321,14 +321,14 @@ impl SensorAttribution {
             .filter(|f| Self::qualifies(f, floor))
             .filter(|f| Self::stands_out(f, &findings, floor))
             .collect();
-        // A lag the balance confirms names its whole set: a group the innovations found within
-        // it is part of the same lag (what the filter without the group sees of a large set).
-        let confirmed_set = qualifying.iter().find(|f| sensor::is_balance_lag(f)).map(|f| f.channels.clone());
+        // A whole set that qualifies names its channels: a group the innovations found within it
+        // is part of the same lag (what the filter without the group sees of a large set).
+        let confirmed_set = qualifying.iter().find(|f| sensor::is_set_lag(f)).map(|f| f.channels.clone());
         let named = qualifying
             .into_iter()
             .filter(|f| {
                 confirmed_set.as_ref().is_none_or(|set| {
-                    sensor::is_balance_lag(f)
+                    sensor::is_set_lag(f)
                         || f.effect != firmware_sim::effect::Effect::PressureLag
                         || !f.channels.iter().all(|channel| set.contains(channel))
                 })
