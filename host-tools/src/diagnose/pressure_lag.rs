@@ -501,7 +501,8 @@ const CHANNEL_LAG_Z: f64 = 3.0;
 /// the channels' lags differ is the innovations' (`lags`, [`super::lag_set::identify`], less
 /// the sim's own differences on the data it was fitted on, `own`); the lag they share is taken
 /// from the least lagged channel, as healthy, unless the balance, which reads the pressures
-/// without lag, shows beyond the scatter of both alignments that every channel is lagged. A
+/// without lag, found a common lag (`common_lag`: [`finding`] named one, beyond the scatter of
+/// both alignments) that places even that channel beyond the least lag. A
 /// channel is in the set when its lag stands above zero ([`MIN_CHANNEL_LAG_S`],
 /// [`CHANNEL_LAG_Z`] standard errors, [`FOOTPRINT_SHARE`] of the largest). `None` without a set.
 /// Fitted on the training part only; the set's evidence is the innovations'
@@ -512,6 +513,7 @@ pub fn channel_set(
     reference: impl Into<Reference>,
     lags: &super::lag_set::ChannelLags,
     own: Option<&super::lag_set::ChannelLags>,
+    common_lag: bool,
 ) -> Option<Vec<(usize, f64)>> {
     let reference = reference.into();
     let reference_tau_s = reference.tau_s;
@@ -526,12 +528,12 @@ pub fn channel_set(
         contrast.iter().enumerate().map(|(col, c)| if member(col) { shift_s + c } else { reference_tau_s }).collect()
     };
     // The least lagged channel is taken as healthy (a lag is never negative), unless the
-    // balance shows beyond the scatter of both alignments that every channel is lagged.
+    // balance shows a lag common to every channel beyond the scatter of both alignments
+    // (`common_lag`, [`finding`]) and places even the least lagged channel beyond the least lag.
     let least = contrast.iter().copied().fold(f64::INFINITY, f64::min);
     let anchored_s = reference_tau_s - least;
     let balance_s = minimise(|shift_s| alignment.ssr(&shifted(shift_s, &|_| true)), range);
-    let scatter_s = run_scatter_s(runs, range).unwrap_or(0.0).hypot(reference.scatter_s);
-    let every_lagged = balance_s - anchored_s >= MIN_CHANNEL_LAG_S.max(LAG_SIGNIFICANCE_Z * scatter_s);
+    let every_lagged = common_lag && balance_s - anchored_s >= MIN_CHANNEL_LAG_S;
     let common_s = if every_lagged { balance_s } else { anchored_s };
     let lag_at = |col: usize| common_s + contrast[col] - reference_tau_s;
     let largest_s = (0..taps.len()).map(lag_at).fold(0.0, f64::max);
@@ -774,7 +776,7 @@ mod tests {
     /// The set of `runs`: its channels and their lags, s.
     fn set_of(runs: &[RunStreams]) -> Option<Vec<(usize, f64)>> {
         let lags = crate::diagnose::lag_set::identify(runs).expect("relative lags");
-        channel_set(runs, 0.0, &lags, None)
+        channel_set(runs, 0.0, &lags, None, finding(runs, 0.0).is_some())
     }
 
     /// The contract's lag of any set of channels, each with its own time constant: a lag of four
@@ -828,7 +830,7 @@ mod tests {
         let runs: Vec<RunStreams> = (30..33).map(|seed| run_known(seed, &[0.0; TAPS])).collect();
         let lags = crate::diagnose::lag_set::identify(&runs).expect("relative lags");
         assert!(lags.relative_s.iter().all(|lag| lag.abs() < MIN_CHANNEL_LAG_S), "{:?}", lags.relative_s);
-        assert_eq!(channel_set(&runs, 0.0, &lags, None), None);
+        assert_eq!(channel_set(&runs, 0.0, &lags, None, finding(&runs, 0.0).is_some()), None);
     }
 
     #[test]

@@ -130,7 +130,7 @@ pub fn scan(
     };
     if (common_lag.is_some() || !some.is_empty() || first_step_shows())
         && let Some(set) = super::lag_set::identify(runs).and_then(|lags| {
-            let set = super::pressure_lag::channel_set(runs, reference, &lags, own_channel_lags)?;
+            let set = super::pressure_lag::channel_set(runs, reference, &lags, own_channel_lags, common_lag.is_some())?;
             let mut lag_s = vec![0.0; n_taps];
             for &(tap, lag) in &set {
                 lag_s[tap] = lag;
