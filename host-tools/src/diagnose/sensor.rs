@@ -91,7 +91,7 @@ pub struct Findings {
 }
 
 /// Every sensor finding, and the lag of each channel alone. `reference` is the sim's own
-/// alignment of the taps with the balance and its scatter ([`super::pressure_lag::finding`]).
+/// alignment of the taps with the balance and its scatter (`pressure_lag::finding`).
 #[must_use]
 pub fn scan(
     runs: &[RunStreams],

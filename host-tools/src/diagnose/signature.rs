@@ -27,12 +27,12 @@ pub struct Signature {
     /// kind (`roll`) and by kind and angle of attack (`roll@20`).
     pub gap_to_noise_by_kind: BTreeMap<String, f64>,
     /// The time constant that best aligns the taps with the balance moment on data the sim
-    /// matches, s ([`super::pressure_lag`]): the rig's tubing and the sim's own map; a lag counts
+    /// matches, s (`diagnose::pressure_lag`): the rig's tubing and the sim's own map; a lag counts
     /// beyond it.
     #[serde(default)]
     pub pressure_alignment_s: Option<f64>,
     /// The standard error of [`Self::pressure_alignment_s`], s, from the scatter of its runs'
-    /// own alignments ([`super::pressure_lag::run_scatter_s`]).
+    /// own alignments (`pressure_lag::run_scatter_s`).
     #[serde(default)]
     pub pressure_alignment_scatter_s: Option<f64>,
     /// How each pressure channel's apparent lag differs from the others' on data the sim

@@ -388,7 +388,7 @@ fn innovations(model: &PressureTable, inputs: &FilterInputs<'_>, cp: &[Vec<f64>]
 }
 
 /// The smoothed time derivative of one pressure channel, 1/s: zero-phase smoothed at
-/// [`PRESSURE_CORNER_HZ`], then central differences (NaN where the channel is missing). The
+/// `PRESSURE_CORNER_HZ`, then central differences (NaN where the channel is missing). The
 /// regressor of a tubing lag, `p = y + tau y'` ([`RunStreams::cp_dot`]).
 #[must_use]
 pub fn pressure_derivative(channel: &[f64], sample_hz: f64) -> Vec<f64> {
