@@ -34,6 +34,16 @@ const STUCK_SLOPE: (f64, f64) = (-1.5, -0.3);
 /// reading mapped with a wrong gain `g` keeps `g^2` (0.25 at half the gain).
 const STUCK_FLATNESS: f64 = 0.1;
 
+/// Largest ratio of the smoothed reading's variance over its interval to what the reading's own
+/// noise alone would leave after the same smoothing (its white variance from first differences,
+/// over the window's length). A stuck reading is a constant with its transducer's noise
+/// (shared/spec/diagnosis.md, pressure_fault), so the ratio is 1 for white noise and stays
+/// below 10 for noise correlated up to 0.6 from sample to sample (an AR(1) noise of
+/// correlation rho leaves (1 + rho) / (1 - rho)^2 times more). A live channel moves with the
+/// flow, tens of times above its smoothed noise: a channel that moves less than the filter
+/// expects is not stuck while it still moves.
+const STUCK_NOISE_FLATNESS: f64 = 10.0;
+
 /// Half-width of the moving average that smooths reading and expectation for the flatness test,
 /// s: the noise falls by the window's length, the flow's motion (a few hertz) stays.
 const SMOOTHING_HALF_S: f64 = 0.01;
@@ -115,8 +125,9 @@ fn moving_average(values: &[f64], half: usize) -> Vec<f64> {
         .collect()
 }
 
-/// Sums over one grid cell's usable samples: innovation `y`, expectation `x`, and the smoothed
-/// reading `r` and expectation `e` of the flatness test.
+/// Sums over one grid cell's usable samples: innovation `y`, expectation `x`, the smoothed
+/// reading `r` and expectation `e` of the flatness test, and the squared first differences `dd`
+/// of the raw reading (over `nd` pairs) for its noise.
 #[derive(Debug, Clone, Copy, Default)]
 struct Sums {
     n: f64,
@@ -129,6 +140,8 @@ struct Sums {
     rr: f64,
     e: f64,
     ee: f64,
+    dd: f64,
+    nd: f64,
 }
 
 impl Sums {
@@ -143,6 +156,8 @@ impl Sums {
         self.rr += other.rr;
         self.e += other.e;
         self.ee += other.ee;
+        self.dd += other.dd;
+        self.nd += other.nd;
     }
 
     fn minus(&self, other: &Self) -> Self {
@@ -157,6 +172,8 @@ impl Sums {
             rr: self.rr - other.rr,
             e: self.e - other.e,
             ee: self.ee - other.ee,
+            dd: self.dd - other.dd,
+            nd: self.nd - other.nd,
         }
     }
 
@@ -206,14 +223,17 @@ fn best_interval_over(
     }
     let half = ((SMOOTHING_HALF_S * run.sample_hz).round() as usize).max(1);
     let (reading, smooth_expected) = (moving_average(&run.cp[tap], half), moving_average(&expected, half));
+    let window = (2 * half + 1) as f64;
     // Prefix sums over the samples: the sums of any stretch in constant time.
     let mut prefix = Vec::with_capacity(m + 1);
     prefix.push(Sums::default());
     for &i in &samples {
         let (y, x, r, e) = (nu[i], expected[i], reading[i], smooth_expected[i]);
         let (r, e) = if r.is_finite() && e.is_finite() { (r, e) } else { (x, x) };
+        let step = i.checked_sub(1).map_or(f64::NAN, |before| run.cp[tap][i] - run.cp[tap][before]);
+        let (dd, nd) = if step.is_finite() { (step * step, 1.0) } else { (0.0, 0.0) };
         let mut next = *prefix.last().unwrap_or(&Sums::default());
-        next.add(&Sums { n: 1.0, y, yy: y * y, x, xx: x * x, xy: x * y, r, rr: r * r, e, ee: e * e });
+        next.add(&Sums { n: 1.0, y, yy: y * y, x, xx: x * x, xy: x * y, r, rr: r * r, e, ee: e * e, dd, nd });
         prefix.push(next);
     }
     let stretch = |a: usize, b: usize| prefix[b].minus(&prefix[a]);
@@ -232,8 +252,16 @@ fn best_interval_over(
                 let sxx = Sums::var(inside.x, inside.xx, inside.n);
                 let sxy = inside.xy - inside.x * inside.y / inside.n;
                 let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+                // How much the smoothed reading moves, past the first window (which straddles
+                // the onset), against the white noise variance of the reading left after the
+                // same smoothing.
+                let settled = stretch((a + half).min(b - 1), b);
+                let moved = Sums::var(settled.r, settled.rr, settled.n) / settled.n;
+                let noise_left = if inside.nd > 0.0 { inside.dd / (2.0 * inside.nd) / window } else { 0.0 };
                 let flat = Sums::var(inside.r, inside.rr, inside.n)
-                    <= STUCK_FLATNESS * Sums::var(inside.e, inside.ee, inside.n);
+                    <= STUCK_FLATNESS * Sums::var(inside.e, inside.ee, inside.n)
+                    // (A bit-identical reading leaves no noise: only the sums' rounding.)
+                    && moved <= STUCK_NOISE_FLATNESS * noise_left + 1e-9 * settled.rr / settled.n;
                 if (STUCK_SLOPE.0..=STUCK_SLOPE.1).contains(&slope) && flat { sxy * sxy / sxx } else { 0.0 }
             }
         }
@@ -1048,6 +1076,35 @@ mod tests {
         // only the flatness of the reading tells the two apart.
         let run = run_with(3, |_, e| 0.5 * e - 0.25);
         assert_eq!(interval_s(&run, Shape::Stuck), None);
+    }
+
+    /// A live channel that moves at a fifth of what the filter expects (its smoothed variance
+    /// 0.04 of the expectation's, inside the flatness bound) still moves hundreds of times
+    /// above its smoothed noise: not stuck.
+    #[test]
+    fn a_channel_that_moves_less_than_expected_is_not_stuck() {
+        let run = run_with(4, |_, e| 0.2 * e - 0.4);
+        assert_eq!(interval_s(&run, Shape::Stuck), None);
+    }
+
+    /// A channel stuck from 6 s whose transducer noise is correlated from sample to sample
+    /// (AR(1), correlation 0.5, on top of the white noise) is still a constant with its noise.
+    #[test]
+    fn a_channel_stuck_with_correlated_noise_is_stuck() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let innovation = Normal::new(0.0, NOISE).expect("a valid deviation");
+        let mut level = 0.0;
+        let coloured: Vec<f64> = (0..(DURATION_S * HZ) as usize)
+            .map(|_| {
+                level = 0.5 * level + innovation.sample(&mut rng);
+                level
+            })
+            .collect();
+        let run = run_with(5, |t_s, e| {
+            if t_s >= 6.0 { -0.4 + coloured[((t_s * HZ).round() as usize).min(coloured.len() - 1)] } else { e }
+        });
+        let (start, _) = interval_s(&run, Shape::Stuck).expect("a stuck interval");
+        assert!((start - 6.0).abs() <= CELL_S + 0.3, "start {start} s");
     }
 
     #[test]
