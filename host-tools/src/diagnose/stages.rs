@@ -344,14 +344,19 @@ impl SensorAttribution {
     /// changes with the excitation from recording to recording, so the floor is taken as known
     /// within a factor of two, as the gap per run takes its own ([`PooledGap::beyond`]).
     ///
-    /// And it must be a cause of its channels' gap, not a sliver of it: on the selection part it
-    /// removes at least [`MIN_SENSOR_GAP_SHARE`] of the mean square its channels hold beyond
-    /// the noise ([`Self::gap_share`]).
+    /// And a finding on the innovations alone must be a cause of its channels' gap, not a
+    /// sliver of it: on the selection part it removes at least [`MIN_SENSOR_GAP_SHARE`] of the
+    /// mean square its channels hold beyond the noise ([`Self::gap_share`]). A lag of a whole
+    /// set ([`sensor::is_set_lag`]) is measured beyond the sim's own lags: each channel's
+    /// beyond what the sim shows on the data it was fitted on (the signature's
+    /// `pressure_channel_lags`), the shared part beyond its own alignment. So the lag-like part
+    /// of the pressure model's own error is already taken out of it, and the rest of that error
+    /// (most of a channel's gap on a rig the model fits poorly) is no measure of it.
     pub(super) fn qualifies(finding: &SensorFinding, floor: &Signature) -> bool {
         let min_ratio = MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE;
         Self::excess_of(finding, floor) >= min_ratio.max(Self::floor_of(finding, floor))
             && finding.delta_bic >= MIN_DELTA_BIC
-            && Self::gap_share(finding) >= MIN_SENSOR_GAP_SHARE
+            && (sensor::is_set_lag(finding) || Self::gap_share(finding) >= MIN_SENSOR_GAP_SHARE)
     }
 
     /// The share of its channels' mean square beyond the noise on the selection part that a

@@ -12,7 +12,7 @@ use crate::diagnose::sensor::{ParamValue, SensorFinding};
 use crate::diagnose::streams::synthetic_run;
 use crate::diagnose::{
     BalanceAttribution, Decision, GapSummary, LeftGap, MAX_REMAINDER_GAP_SHARE, MAX_REMAINDER_GAP_TO_NOISE,
-    MIN_DELTA_BIC, MIN_EFFECT_TO_NOISE, ProbeResult, SensorAttribution, Signature, Streams,
+    MIN_DELTA_BIC, MIN_EFFECT_TO_NOISE, MIN_SENSOR_GAP_SHARE, ProbeResult, SensorAttribution, Signature, Streams,
 };
 
 const HZ: f64 = 1000.0;
@@ -604,4 +604,29 @@ fn a_sensor_finding_must_remove_a_third_of_its_channels_gap() {
     assert!(SensorAttribution::qualifies(&with_gap(3.0, 9.0), &floor));
     assert!(!SensorAttribution::qualifies(&with_gap(3.0, 9.1), &floor));
     assert!((SensorAttribution::gap_share(&with_gap(3.0, 9.0)) - 1.0 / 3.0).abs() < 1e-12);
+}
+
+/// A lag of a whole set is measured beyond the sim's own lags, so the rest of the pressure
+/// model's error on a rig it fits poorly is no measure of it: it is named on the floor and the
+/// evidence alone, where a finding on the innovations alone removing the same share is not.
+#[test]
+fn a_set_lag_is_named_beyond_the_sims_own_lags_whatever_the_models_error() {
+    let poorly_fitted = |set: bool| {
+        let mut finding = SensorFinding {
+            effect: firmware_sim::effect::Effect::PressureLag,
+            params: vec![("tau_s".into(), ParamValue::Number(0.03))],
+            channel: None,
+            channels: vec!["cp02".into(), "cp07".into()],
+            selection: HeldoutGap { mse_before: 13.0, mse_after: 11.0, noise_var: 1.0, n: 100, floor_var: 0.0 },
+            ..sensor_finding(2.0)
+        };
+        if set {
+            finding.params.push(("reference_tau_s".into(), ParamValue::Number(0.0)));
+        }
+        finding
+    };
+    let floor = Signature::default();
+    assert!(SensorAttribution::gap_share(&poorly_fitted(true)) < MIN_SENSOR_GAP_SHARE);
+    assert!(SensorAttribution::qualifies(&poorly_fitted(true), &floor));
+    assert!(!SensorAttribution::qualifies(&poorly_fitted(false), &floor));
 }
