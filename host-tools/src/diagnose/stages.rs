@@ -136,10 +136,15 @@ impl BalanceAttribution {
     }
 
     /// Decisive evidence on the training part and at least an effect of
-    /// [`MIN_EFFECT_TO_NOISE`] of the noise, out of sample, beyond the signature.
+    /// [`MIN_EFFECT_TO_NOISE`] of the noise, out of sample, beyond the signature. The
+    /// signature's floor of a candidate is what it took of the sim's own error on the fit's
+    /// recording; on another recording it may take as much again ([`OWN_GAP_UNCERTAINTY`], as
+    /// the sim's own gap and a sensor finding's floor are taken), so the excess must also reach
+    /// the floor's uncertainty.
     pub(super) fn qualifies(&self, profiled: &Profiled, streams: &Streams, floor: &Signature) -> bool {
+        let own = (OWN_GAP_UNCERTAINTY - 1.0) * floor.of(profiled.candidate.name()).max(0.0);
         profiled.delta_bic >= MIN_DELTA_BIC
-            && self.excess(profiled, streams, floor) >= naming_threshold(streams, &profiled.fit.touched, floor)
+            && self.excess(profiled, streams, floor) >= naming_threshold(streams, &profiled.fit.touched, floor).max(own)
     }
 
     /// The strength of the leading named effect (0 without one).

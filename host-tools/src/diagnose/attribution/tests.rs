@@ -374,20 +374,21 @@ fn the_naming_threshold_counts_the_sims_own_gap_on_the_touched_runs() {
     assert_eq!(crate::diagnose::naming_threshold(&streams, &[true, true], &Signature::default()), MIN_RATIO);
 }
 
-/// The excess is counted beyond the sim's own signature for that candidate (0.75 removed
-/// over a floor of 0.5 is exactly the threshold; a hair more floor and it fails), in noise
+/// The excess is counted beyond the sim's own signature for that candidate (0.375 removed
+/// over a floor of 0.125 is exactly the threshold; a hair more floor and it fails), in noise
 /// variances of the balance stream; a negative floor sets none.
 #[test]
 fn the_excess_is_counted_beyond_the_signature_in_noise_variances() {
     let stage = balance(Vec::new(), Vec::new());
-    let candidate = profiled(&InertialTare, 0.75, 50.0);
+    let candidate = profiled(&InertialTare, 0.375, 50.0);
     let floor = |value: f64| Signature {
         explained_to_noise: BTreeMap::from([("inertial_tare".to_owned(), value)]),
         ..Signature::default()
     };
     let unit = streams(Vec::new(), 1.0);
-    assert!(stage.qualifies(&candidate, &unit, &floor(0.5)));
-    assert!(!stage.qualifies(&candidate, &unit, &floor(0.5 + 2f64.powi(-30))));
+    assert!(stage.qualifies(&candidate, &unit, &floor(0.125)));
+    assert!(!stage.qualifies(&candidate, &unit, &floor(0.125 + 2f64.powi(-30))));
+    let candidate = profiled(&InertialTare, 0.75, 50.0);
     assert_eq!(stage.excess(&candidate, &unit, &floor(-3.0)), 0.75);
     // Another candidate's floor does not count against it.
     let other =
@@ -395,6 +396,22 @@ fn the_excess_is_counted_beyond_the_signature_in_noise_variances() {
     assert_eq!(stage.excess(&candidate, &unit, &other), 0.75);
     // With a noise variance of 2, 0.75 removed is 0.375 noise variances.
     assert_eq!(stage.excess(&candidate, &streams(Vec::new(), 2.0), &floor(0.0)), 0.375);
+}
+
+/// A candidate's floor is what it took of the sim's own error on the fit's recording, and on
+/// another it may take as much again: 8 removed over a floor of 4 just qualifies, far above
+/// the naming threshold; a hair more floor and it does not.
+#[test]
+fn a_candidate_must_clear_its_floor_twice_over() {
+    let stage = balance(Vec::new(), Vec::new());
+    let candidate = profiled(&InertialTare, 8.0, 50.0);
+    let floor = |value: f64| Signature {
+        explained_to_noise: BTreeMap::from([("inertial_tare".to_owned(), value)]),
+        ..Signature::default()
+    };
+    let unit = streams(Vec::new(), 1.0);
+    assert!(stage.qualifies(&candidate, &unit, &floor(4.0)));
+    assert!(!stage.qualifies(&candidate, &unit, &floor(4.0 + 2f64.powi(-30))));
 }
 
 /// Nothing named and nothing that predicts the gap: `none`. Something that predicts at
