@@ -19,6 +19,7 @@
 pub mod attribution;
 pub mod candidates;
 mod decision;
+pub mod encoder;
 pub mod faults;
 pub mod gap_ledger;
 pub mod lag_set;
@@ -170,6 +171,13 @@ pub fn diagnose(
     let sensor = SensorAttribution::run(&streams, &floor);
     let gaps = GapSummary::run(&streams, &floor);
     let decision = Decision::make(&streams, &balance, &probe, &sensor, &gaps, &floor);
+    // A roll angle recorded in steps coarser than its motion spikes the rate every balance
+    // candidate is driven by: what they explain is the encoder's, outside the vocabulary.
+    let coarse_encoder = encoder::quantisation(&streams.runs);
+    let decision = match decision {
+        Decision::Balance if coarse_encoder.is_some() => Decision::Unattributed,
+        other => other,
+    };
 
     let context = streams.context();
     let own_signature = Signature {
@@ -221,13 +229,23 @@ pub fn diagnose(
             where_.alpha_deg = alphas(runs, &touched);
             where_.runs = gaps.excess_runs.iter().map(|&idx| runs[idx].file.clone()).collect();
             let best = balance.first_round.first();
+            let encoder_note = coarse_encoder
+                .map(|q| {
+                    format!(
+                        "the recorded roll angle moves in steps of {:.3} deg, {:.0} times its motion per sample (a coarse encoder: the rate and acceleration from it come in spikes); ",
+                        q.quantum_deg,
+                        q.quantum_deg / q.motion_per_sample_deg
+                    )
+                })
+                .unwrap_or_default();
             unexplained = Some(Unexplained {
-                description: describe_structure(
-                    runs,
-                    &gaps.excess_runs,
-                    probe.structure,
-                    best.map(|p| (p.candidate.name(), balance.excess(p, &streams, &floor))),
-                ),
+                description: encoder_note
+                    + &describe_structure(
+                        runs,
+                        &gaps.excess_runs,
+                        probe.structure,
+                        best.map(|p| (p.candidate.name(), balance.excess(p, &streams, &floor))),
+                    ),
                 best_candidate: best.map(|p| p.candidate.name().to_owned()),
                 best_candidate_explained_to_noise: best
                     .and_then(|p| finite_or_null(balance.excess(p, &streams, &floor))),
