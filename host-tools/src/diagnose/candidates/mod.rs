@@ -174,8 +174,8 @@ pub enum Shape {
         drive: Drive,
         /// Whether the moment is the state or its deficit from the quasi-steady input.
         law: SlowLaw,
-        /// The one angle of attack where the state acts, deg (`None`: at every angle).
-        at_alpha_deg: Option<f64>,
+        /// The angles of attack where the state acts.
+        band: AlphaBand,
     },
     /// A second-order structural mode.
     Mode {
@@ -351,6 +351,59 @@ impl SlowLaw {
     }
 }
 
+/// The angles of attack where a second flow state acts: every angle, or a band of them (the
+/// contract's "at every alpha or only at some": a flow state sets in or breaks down with
+/// incidence, so the angles where it acts are a range of the campaign's angles; a state at low
+/// and high incidence but not between is two states).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AlphaBand {
+    /// The lowest angle where the state acts, deg (`None`: from the campaign's lowest).
+    pub from_deg: Option<f64>,
+    /// The highest angle where the state acts, deg (`None`: to the campaign's highest).
+    pub to_deg: Option<f64>,
+}
+
+/// Most distinct angles of attack for which every band is profiled; above it, only the bands
+/// open at one end (from an angle upward, up to an angle), which keeps the grid linear in the
+/// number of angles.
+const MAX_BAND_ANGLES: usize = 6;
+
+impl AlphaBand {
+    /// Every angle of attack.
+    pub const ALL: Self = Self { from_deg: None, to_deg: None };
+
+    /// Whether the state acts at `alpha_deg`.
+    #[must_use]
+    pub fn holds(self, alpha_deg: f64) -> bool {
+        self.from_deg.is_none_or(|from| alpha_deg >= from - 1e-6) && self.to_deg.is_none_or(|to| alpha_deg <= to + 1e-6)
+    }
+
+    /// The band's profiled ends (an open end is no parameter).
+    #[must_use]
+    pub const fn n_ends(self) -> usize {
+        self.from_deg.is_some() as usize + self.to_deg.is_some() as usize
+    }
+
+    /// Every contiguous band of `alphas_deg` (sorted, distinct), every angle first; above
+    /// [`MAX_BAND_ANGLES`] angles, only the bands open at one end.
+    #[must_use]
+    pub fn bands(alphas_deg: &[f64]) -> Vec<Self> {
+        let n = alphas_deg.len();
+        let mut out = vec![Self::ALL];
+        for low in 0..n {
+            for high in low..n {
+                let from_deg = (low > 0).then(|| alphas_deg[low]);
+                let to_deg = (high + 1 < n).then(|| alphas_deg[high]);
+                let open_at_one_end = from_deg.is_none() || to_deg.is_none();
+                if (from_deg.is_some() || to_deg.is_some()) && (n <= MAX_BAND_ANGLES || open_at_one_end) {
+                    out.push(Self { from_deg, to_deg });
+                }
+            }
+        }
+        out
+    }
+}
+
 /// What drives a second flow state (one at a time: the lags of the sideslip and of the rate
 /// together span the roll angle itself, a static moment, not a lag).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -362,11 +415,14 @@ pub enum Drive {
     /// The roll angle itself, one gain at every angle of attack (a state that follows the
     /// attitude, not the sideslip it makes at incidence).
     RollAngle,
+    /// The vortex state itself, as the eGK's moment shows it (the contract's "driven ... by the
+    /// vortex state itself": a slower state of the half-wings' lift that follows the fast one).
+    VortexState,
 }
 
 impl Drive {
     /// Every drive of the slow state.
-    pub const ALL: [Self; 3] = [Self::Sideslip, Self::RollRate, Self::RollAngle];
+    pub const ALL: [Self; 4] = [Self::Sideslip, Self::RollRate, Self::RollAngle, Self::VortexState];
 }
 
 impl Drive {
@@ -377,6 +433,7 @@ impl Drive {
             Self::Sideslip => "sideslip",
             Self::RollRate => "roll_rate",
             Self::RollAngle => "roll_angle",
+            Self::VortexState => "vortex_state",
         }
     }
 }
@@ -424,7 +481,7 @@ impl Form {
             Shape::Lag { .. } | Shape::RateLimit { .. } | Shape::Settle { .. } => 1,
             Shape::Delay { smoothing_s, .. } => 1 + (smoothing_s > 0.0) as usize,
             Shape::SecondOrderLag { .. } => 2,
-            Shape::SlowState { at_alpha_deg, .. } => 1 + at_alpha_deg.is_some() as usize,
+            Shape::SlowState { band, .. } => 1 + band.n_ends(),
             Shape::Tare { corner_hz, .. } => corner_hz.is_some() as usize,
             Shape::Interaction { lag_s, .. } => (lag_s > 0.0) as usize,
             // Every step's time is profiled, in every run.
@@ -480,14 +537,17 @@ impl Form {
                 ("order", FormValue::Number(2.0)),
             ],
             Shape::RateLimit { full_stroke_s } => vec![("full_stroke_s", FormValue::Number(full_stroke_s))],
-            Shape::SlowState { tau_s, drive, law, at_alpha_deg } => {
+            Shape::SlowState { tau_s, drive, law, band } => {
                 let mut entries = vec![
                     ("tau_s", FormValue::Number(tau_s)),
                     ("drive", FormValue::Choice(drive.name())),
                     ("law", FormValue::Choice(law.name())),
                 ];
-                if let Some(alpha_deg) = at_alpha_deg {
-                    entries.push(("at_alpha_deg", FormValue::Number(alpha_deg)));
+                if let Some(from_deg) = band.from_deg {
+                    entries.push(("from_alpha_deg", FormValue::Number(from_deg)));
+                }
+                if let Some(to_deg) = band.to_deg {
+                    entries.push(("to_alpha_deg", FormValue::Number(to_deg)));
                 }
                 entries
             }
@@ -857,7 +917,7 @@ mod tests {
     #[test]
     fn form_entries_name_every_parameter_and_count_the_profiled_ones() {
         let form = Form {
-            shape: Shape::SlowState { tau_s: 0.5, drive: Drive::RollRate, law: SlowLaw::State, at_alpha_deg: None },
+            shape: Shape::SlowState { tau_s: 0.5, drive: Drive::RollRate, law: SlowLaw::State, band: AlphaBand::ALL },
             per_alpha: true,
         };
         let entries = form.entries();
