@@ -491,12 +491,19 @@ impl Form {
 }
 
 /// The stream the shared forms are judged on: the channel's innovation from the filter run
-/// without it ([`RunStreams::innovation_alone`]), the reading less what the other channels
-/// expect of it. The filter's modes follow every channel that corrects them, so a channel's own
-/// innovation shows only part of a slow departure (a bias, a drift, a wrong gain); the others'
-/// expectation does not move with it, and the departure shows whole.
+/// without it, the reading less what the other channels expect of it, beyond its mean on the
+/// sim's own recording ([`RunStreams::departure_alone`]). The filter's modes follow every
+/// channel that corrects them, so a channel's own innovation shows only part of a slow
+/// departure (a bias, a drift, a wrong gain); the others' expectation does not move with it,
+/// and the departure shows whole.
 fn judged(run: &RunStreams, tap: usize) -> &[f64] {
-    &run.innovation_alone[tap]
+    &run.departure_alone[tap]
+}
+
+/// What the other channels expect of the channel at sample `i`: the reading less its
+/// innovation from the filter run without it.
+fn expected(run: &RunStreams, tap: usize, i: usize) -> f64 {
+    run.cp[tap][i] - run.innovation_alone[tap][i]
 }
 
 /// What the fault adds to the judged innovation at sample `i`, per unit of its parameter, from
@@ -509,7 +516,7 @@ fn regressor(run: &RunStreams, tap: usize, form: Form, onset_s: f64, i: usize) -
     match form {
         Form::Bias => 1.0,
         Form::Drift => run.t_s[i] - onset_s,
-        Form::Gain => run.cp[tap][i] - judged(run, tap)[i],
+        Form::Gain => expected(run, tap, i),
     }
 }
 
@@ -541,13 +548,13 @@ impl RunScan {
     fn new(run: &RunStreams, tap: usize, candidates: impl Iterator<Item = usize>, tau: f64) -> Option<Self> {
         let r = judged(run, tap);
         let samples: Vec<usize> =
-            candidates.filter(|&i| r[i].is_finite() && (run.cp[tap][i] - r[i]).is_finite()).collect();
+            candidates.filter(|&i| r[i].is_finite() && expected(run, tap, i).is_finite()).collect();
         if samples.len() < 2 * MIN_FAULTY_SAMPLES {
             return None;
         }
         let mut suffix = vec![Tail::default(); samples.len() + 1];
         for (p, &i) in samples.iter().enumerate().rev() {
-            let (y, t, e) = (r[i], run.t_s[i], run.cp[tap][i] - r[i]);
+            let (y, t, e) = (r[i], run.t_s[i], expected(run, tap, i));
             let next = suffix[p + 1];
             suffix[p] = Tail {
                 n: next.n + 1.0,
@@ -773,7 +780,7 @@ pub fn shared_part_gap(
     gap.finish()
 }
 
-/// Segments of one channel's judged innovation ([`RunStreams::innovation_alone`]) in every run.
+/// Segments of one channel's judged innovation ([`RunStreams::departure_alone`]) in every run.
 #[must_use]
 pub fn segments_judged(runs: &[RunStreams], tap: usize) -> Vec<Segment<'_>> {
     segments_over(runs, |run| judged(run, tap))
@@ -1259,5 +1266,23 @@ mod tests {
         let shared = fit_shared(&runs, 0, Form::Bias, 1.0).expect("a bias");
         assert!((shared.beta - 0.027).abs() < 0.002, "{shared:?}");
         assert_eq!(shared.runs_with(), levels.len());
+    }
+
+    /// A channel biased by 0.02 from the start of every run, where the pressure model's own
+    /// error is a level of its own in each run as large as the bias: the runs disagree and no
+    /// bias holds, until the sim's own level per run (its signature's mean on a clean
+    /// recording) is taken off; then it is one bias, in every run, from the start.
+    #[test]
+    fn a_bias_from_the_start_is_judged_beyond_the_sims_own_level_per_run() {
+        let own = [0.03, -0.02, 0.05, 0.01, -0.04];
+        let mut runs: Vec<RunStreams> =
+            own.iter().enumerate().map(|(k, level)| run_with(90 + k as u64, move |_, e| e + level + 0.02)).collect();
+        assert_eq!(fit_shared(&runs, 0, Form::Bias, 1.0), None);
+        for (run, level) in runs.iter_mut().zip(own) {
+            run.remove_own_mean(&[level]);
+        }
+        let shared = fit_shared(&runs, 0, Form::Bias, 1.0).expect("a bias");
+        assert!((shared.beta - 0.02).abs() < 0.002, "{shared:?}");
+        assert!(shared.onset_s.iter().all(|onset| onset.is_some_and(|t| t < 0.1)), "{shared:?}");
     }
 }

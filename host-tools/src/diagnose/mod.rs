@@ -198,6 +198,11 @@ pub fn diagnose(
         pressure_alignment_scatter_s: pressure_lag::run_scatter_s(&streams.runs, pressure_lag::REFERENCE_RANGE_S),
         // Only a signature needs it (a diagnosis without one is the sim on its own data).
         pressure_channel_lags: config.signature.is_none().then(|| lag_set::identify(&streams.runs)).flatten(),
+        pressure_alone_mean: config
+            .signature
+            .is_none()
+            .then(|| signature::pressure_alone_means(&streams.runs))
+            .flatten(),
     };
 
     let mut effects = Vec::new();

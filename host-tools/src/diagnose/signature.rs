@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 use estimator_core::CoefficientSet;
 use firmware_sim::dataset::Dataset;
 
+use super::streams::RunStreams;
 use super::{DiagnoseConfig, DiagnoseError, diagnose};
 use crate::fit::split::Split;
 
@@ -40,6 +41,12 @@ pub struct Signature {
     /// error per channel; a channel's lag counts beyond it.
     #[serde(default)]
     pub pressure_channel_lags: Option<super::lag_set::ChannelLags>,
+    /// Per kind of run and angle of attack (`roll@20`), each pressure channel's mean innovation
+    /// from the filter run without it ([`super::streams::RunStreams::innovation_alone`]) on
+    /// data the sim matches: the pressure model's own mean error there, which a fault from the
+    /// start of a run is judged beyond ([`super::streams::RunStreams::departure_alone`]).
+    #[serde(default)]
+    pub pressure_alone_mean: Option<BTreeMap<String, Vec<f64>>>,
 }
 
 /// File name of a model's signature in its folder.
@@ -52,10 +59,14 @@ pub const SIGNATURE_FILE: &str = "diagnosis-signature.json";
 /// report says so.
 pub const DEFAULT_SIGNATURE_JSON: &str = include_str!("../../../models/default/diagnosis-signature.json");
 
-/// [`DEFAULT_SIGNATURE_JSON`], parsed (an empty signature if it ever fails to parse).
+/// [`DEFAULT_SIGNATURE_JSON`], parsed (an empty signature if it ever fails to parse), without
+/// the pressure channels' mean innovations: they are the built-in pressure map's own error on
+/// its own tunnel, and a diagnosis takes this signature for other sims (nominal models fitted
+/// on the recording itself, whose mean error there is nil).
 #[must_use]
 pub fn default_signature() -> Signature {
-    serde_json::from_str(DEFAULT_SIGNATURE_JSON).unwrap_or_default()
+    let signature: Signature = serde_json::from_str(DEFAULT_SIGNATURE_JSON).unwrap_or_default();
+    Signature { pressure_alone_mean: None, ..signature }
 }
 
 impl Signature {
@@ -83,6 +94,29 @@ impl Signature {
 
 pub(super) fn kind_alpha_key(kind: &str, alpha_deg: f64) -> String {
     format!("{kind}@{alpha_deg}")
+}
+
+/// Per kind of run and angle of attack, the mean over its runs of each channel's
+/// [`RunStreams::mean_alone`] (0 for a channel never read; `None` without runs).
+pub(super) fn pressure_alone_means(runs: &[RunStreams]) -> Option<BTreeMap<String, Vec<f64>>> {
+    let mut sums: BTreeMap<String, (Vec<f64>, Vec<usize>)> = BTreeMap::new();
+    for run in runs {
+        let means = run.mean_alone();
+        let entry = sums
+            .entry(kind_alpha_key(run.kind.as_str(), run.alpha_deg))
+            .or_insert_with(|| (vec![0.0; means.len()], vec![0; means.len()]));
+        for (tap, mean) in means.iter().enumerate().filter(|(_, m)| m.is_finite()) {
+            entry.0[tap] += mean;
+            entry.1[tap] += 1;
+        }
+    }
+    let out: BTreeMap<String, Vec<f64>> = sums
+        .into_iter()
+        .map(|(key, (sum, n))| {
+            (key, sum.iter().zip(&n).map(|(s, &n)| if n == 0 { 0.0 } else { s / n as f64 }).collect())
+        })
+        .collect();
+    (!out.is_empty()).then_some(out)
 }
 
 /// The signature of `set` on `dataset` (the data it was fitted on): the recording diagnosed
@@ -157,5 +191,29 @@ mod tests {
         std::fs::remove_file(dir.path().join(SIGNATURE_FILE)).unwrap();
         std::fs::create_dir(dir.path().join(SIGNATURE_FILE)).unwrap();
         assert!(matches!(signature_beside(dir.path()), Err(SignatureFileError::Read { .. })));
+    }
+
+    /// The sim's own mean innovation is kept per kind of run and angle: two runs alike are
+    /// averaged, a run at another angle has its own entry, and a channel never read counts 0.
+    #[test]
+    fn the_pressure_means_are_kept_per_kind_and_angle() {
+        let run = |alpha_deg: f64, level: f64| {
+            let mut run = crate::diagnose::streams::synthetic_run(
+                100.0,
+                vec![vec![0.0; 50], vec![f64::NAN; 50]],
+                vec![vec![level; 50], vec![f64::NAN; 50]],
+            );
+            run.alpha_deg = alpha_deg;
+            run
+        };
+        let means = pressure_alone_means(&[run(10.0, 0.01), run(10.0, 0.03), run(20.0, -0.02)]).expect("means");
+        let close = |key: &str, want: [f64; 2]| {
+            let got = &means[key];
+            assert!(got.iter().zip(want).all(|(g, w)| (g - w).abs() < 1e-12), "{key}: {got:?}");
+        };
+        close(&kind_alpha_key("static", 10.0), [0.02, 0.0]);
+        close(&kind_alpha_key("static", 20.0), [-0.02, 0.0]);
+        assert_eq!(means.len(), 2);
+        assert_eq!(default_signature().pressure_alone_mean, None, "the built-in map's own means stay its own");
     }
 }

@@ -23,7 +23,14 @@ pub struct Streams {
 
 impl Streams {
     pub(super) fn build(dataset: &Dataset, set: &CoefficientSet, config: &DiagnoseConfig) -> Self {
-        let runs = streams::build(dataset, set, &config.split);
+        let mut runs = streams::build(dataset, set, &config.split);
+        if let Some(means) = config.signature.as_ref().and_then(|s| s.pressure_alone_mean.as_ref()) {
+            for run in &mut runs {
+                if let Some(own) = means.get(&kind_alpha_key(run.kind.as_str(), run.alpha_deg)) {
+                    run.remove_own_mean(own);
+                }
+            }
+        }
         let residuals: Vec<Vec<f64>> = runs.iter().map(|run| run.residual.clone()).collect();
         let segments = attribution::segments(&runs, &residuals);
         let noise_var = regression::difference_noise_var(&segments, None);

@@ -93,6 +93,14 @@ pub struct RunStreams {
     /// (NaN where it is missing): the filter's modes follow the channels that correct them, so
     /// a lag or a drift of a channel shows whole only in what the other channels expect of it.
     pub innovation_alone: Vec<Vec<f64>>,
+    /// [`Self::innovation_alone`] less its mean on the sim's own recording, for runs of this
+    /// kind at this angle of attack ([`super::Signature::pressure_alone_mean`]; as
+    /// `innovation_alone` without a signature that has it): the channel's departure from
+    /// what it read where nothing was wrong. The pressure model's mean error differs from run
+    /// to run by as much as a biased or mis-scaled channel reads wrong from the start, and a
+    /// fault present from the start has no onset to tell it by; the model's error repeats on
+    /// every recording of the rig, the fault does not.
+    pub departure_alone: Vec<Vec<f64>>,
     /// Smoothed time derivative of each measured pressure channel, 1/s.
     pub cp_dot: Vec<Vec<f64>>,
     /// The diagnosis filter, to run again with other channels withheld
@@ -118,6 +126,32 @@ pub enum PressureReplay {
 }
 
 impl RunStreams {
+    /// Takes `own_mean` (per channel, the sim's own mean of [`Self::innovation_alone`] on runs
+    /// like this one) off [`Self::departure_alone`].
+    pub fn remove_own_mean(&mut self, own_mean: &[f64]) {
+        for ((departure, alone), mean) in self.departure_alone.iter_mut().zip(&self.innovation_alone).zip(own_mean) {
+            if mean.is_finite() {
+                *departure = alone.iter().map(|value| value - mean).collect();
+            }
+        }
+    }
+
+    /// Per channel, the mean of [`Self::innovation_alone`] over its finite samples (NaN for a
+    /// channel without any).
+    #[must_use]
+    pub fn mean_alone(&self) -> Vec<f64> {
+        self.innovation_alone
+            .iter()
+            .map(|channel| {
+                let (sum, n) = channel
+                    .iter()
+                    .filter(|value| value.is_finite())
+                    .fold((0.0, 0usize), |(sum, n), value| (sum + value, n + 1));
+                if n == 0 { f64::NAN } else { sum / n as f64 }
+            })
+            .collect()
+    }
+
     /// One-step innovation of each pressure channel from the filter run with the channels
     /// marked in `left_out` withheld (read as missing): what the other channels expect of each
     /// withheld one. A lag of a group of channels shows whole only without the whole group,
@@ -331,6 +365,7 @@ fn build_run(run: &Run, set: &CoefficientSet, split: &Split) -> RunStreams {
         residual,
         cp,
         innovation,
+        departure_alone: innovation_alone.clone(),
         innovation_alone,
         cp_dot,
         replay: PressureReplay::Filter { model, phi_dot_rad_s: filter_phi_dot_rad_s },
@@ -442,6 +477,7 @@ pub(crate) fn synthetic_run(sample_hz: f64, cp: Vec<Vec<f64>>, innovation: Vec<V
         cp_dot: cp.iter().map(|_| zeros.clone()).collect(),
         cp,
         innovation_alone: innovation.clone(),
+        departure_alone: innovation.clone(),
         innovation,
         replay: PressureReplay::Known,
     }
