@@ -366,7 +366,7 @@ pub struct AlphaBand {
 /// Most distinct angles of attack for which every band is profiled; above it, only the bands
 /// open at one end (from an angle upward, up to an angle), which keeps the grid linear in the
 /// number of angles.
-const MAX_BAND_ANGLES: usize = 6;
+pub const MAX_BAND_ANGLES: usize = 6;
 
 impl AlphaBand {
     /// Every angle of attack.
