@@ -262,7 +262,42 @@ pub fn subtract(
 /// Groups of the structure probe: shapes outside every candidate's span that a real gap often
 /// has. Used only to say that something remains, never to name it; each group is compared
 /// with its own floor in the sim's signature.
-pub const PROBE_GROUPS: [&str; 4] = ["static_nonlinearity", "moment_nonlinearity", "slow_gain", "input_dynamics"];
+pub const PROBE_GROUPS: [&str; 5] =
+    ["static_nonlinearity", "moment_nonlinearity", "slow_gain", "input_dynamics", SPECTRAL_LINE];
+
+/// The probe group of steady lines in the residual's spectrum ([`line_columns`]).
+pub const SPECTRAL_LINE: &str = "spectral_line";
+
+/// Damping ratio of the `spectral_line` probe's band-pass: a band of 4 % of the line's
+/// frequency, which holds a tone that wanders by a few per cent and little of the white noise.
+const LINE_BAND_ZETA: f64 = 0.02;
+
+/// Columns of the `spectral_line` probe: for each of the residual's spectral peaks
+/// (`seeds_hz`, [`candidates::resonance_seeds_hz`]), the next sample of a steady sinusoid
+/// predicted from the last two of the residual's band at it, `2 cos(w dt) b[n-1] - b[n-2]` (an
+/// undamped oscillator's recursion; Box & Jenkins 1970, ch. 3). A tone from the rig (a fan, a
+/// pump, the mains) is a line no candidate spans and no input predicts, but its own past does;
+/// the probe says that it is there, never names it. One gain per line for every run.
+#[must_use]
+pub fn line_columns(runs: &[RunStreams], residuals: &[Vec<f64>], seeds_hz: &[f64]) -> Vec<Vec<Vec<f64>>> {
+    runs.iter()
+        .zip(residuals)
+        .map(|(run, residual)| {
+            let n = run.len();
+            let first = residual.iter().copied().find(|v| v.is_finite()).unwrap_or(0.0);
+            let held = crate::fit::signals::hold_missing(residual, first);
+            let dt_s = 1.0 / run.sample_hz;
+            seeds_hz
+                .iter()
+                .map(|&freq_hz| {
+                    let band = candidates::band_pass(&held, freq_hz, LINE_BAND_ZETA, dt_s);
+                    let twice_cos = 2.0 * (std::f64::consts::TAU * freq_hz * dt_s).cos();
+                    (0..n).map(|i| if i < 2 { 0.0 } else { twice_cos * band[i - 1] - band[i - 2] }).collect()
+                })
+                .collect()
+        })
+        .collect()
+}
 
 /// The probe groups also asked of the remainder after a named effect: shapes no candidate
 /// spans. `input_dynamics` spans much of what the candidates do and asks only whether the

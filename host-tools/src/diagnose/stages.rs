@@ -19,6 +19,7 @@ pub struct Streams {
     pub(super) moment_scale_nm: f64,
     pub(super) half_span_time_s: f64,
     pub(super) resonance_min_hz: f64,
+    pub(super) resonance_seeds_hz: Vec<f64>,
 }
 
 impl Streams {
@@ -36,6 +37,10 @@ impl Streams {
         let noise_var = regression::difference_noise_var(&segments, None);
         let autocorrelation_time = regression::integrated_autocorrelation(&segments, 200);
         let resonance_min_hz = candidates::resonance_min_hz(&runs);
+        let resonance_seeds_hz = runs.first().map_or_else(Vec::new, |run| {
+            let band_hz = candidates::BalanceResonance::band_hz(run.sample_hz, resonance_min_hz);
+            candidates::resonance_seeds_hz(&runs, &residuals, band_hz)
+        });
         Self {
             noise_var,
             autocorrelation_time,
@@ -44,6 +49,7 @@ impl Streams {
             moment_scale_nm: dataset.tunnel.dynamic_pressure_pa() * dataset.wing.area_m2 * dataset.wing.span_m,
             half_span_time_s: dataset.wing.span_m / (2.0 * dataset.tunnel.u_inf_mps),
             resonance_min_hz,
+            resonance_seeds_hz,
             runs,
         }
     }
@@ -80,6 +86,7 @@ impl Streams {
                 .map(|run| 2.0 * f64::from(estimator_core::egk::params_at(&self.set, run.alpha_deg as f32).tau1_s))
                 .fold(0.05, f64::max),
             resonance_min_hz: self.resonance_min_hz,
+            resonance_seeds_hz: self.resonance_seeds_hz.clone(),
             alphas_deg: {
                 let mut alphas: Vec<f64> = self.runs.iter().map(|run| run.alpha_deg).collect();
                 alphas.sort_by(f64::total_cmp);
@@ -209,7 +216,11 @@ impl ProbeResult {
             groups
                 .iter()
                 .map(|group| {
-                    let columns = attribution::probe_columns(runs, group);
+                    let columns = if *group == attribution::SPECTRAL_LINE {
+                        attribution::line_columns(runs, residuals, &streams.resonance_seeds_hz)
+                    } else {
+                        attribution::probe_columns(runs, group)
+                    };
                     let removed = regression::fit_through_origin(&segments, &columns).map_or(0.0, |fit| {
                         regression::selection_gap(&segments, &columns, &fit.beta, &fit.touched).removed()
                     });

@@ -48,6 +48,7 @@ fn streams(runs: Vec<RunStreams>, noise_var: f64) -> Streams {
         moment_scale_nm: 2.0,
         half_span_time_s: 0.01,
         resonance_min_hz: 4.0,
+        resonance_seeds_hz: Vec::new(),
     }
 }
 
@@ -646,4 +647,30 @@ fn a_set_lag_is_named_beyond_the_sims_own_lags_whatever_the_models_error() {
     assert!(SensorAttribution::gap_share(&poorly_fitted(true)) < MIN_SENSOR_GAP_SHARE);
     assert!(SensorAttribution::qualifies(&poorly_fitted(true), &floor));
     assert!(!SensorAttribution::qualifies(&poorly_fitted(false), &floor));
+}
+
+/// A steady tone from the rig (40 Hz, under white noise of its own RMS) is predicted by the
+/// `spectral_line` probe at its seed, most of its variance; white noise alone is not.
+#[test]
+fn a_steady_tone_is_predicted_by_the_line_probe_and_noise_is_not() {
+    let (sample_hz, n, freq_hz) = (1000.0, 20_000, 40.0);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    let noise = Normal::new(0.0, 1.0).unwrap();
+    let run = synthetic_run(sample_hz, vec![vec![0.0; n]], vec![vec![0.0; n]]);
+    let removed_share = |residual: Vec<f64>, of_var: f64| {
+        let columns = line_columns(std::slice::from_ref(&run), std::slice::from_ref(&residual), &[freq_hz]);
+        let (column, target) = (&columns[0][0][2000..], &residual[2000..]);
+        let beta = crate::diagnose::candidates::test_fit(&[column.to_vec()], target);
+        let before: f64 = target.iter().map(|r| r * r).sum();
+        let after: f64 = target.iter().zip(column).map(|(r, c)| (r - beta[0] * c).powi(2)).sum();
+        (before - after) / (of_var * target.len() as f64)
+    };
+    let tone: Vec<f64> = (0..n)
+        .map(|i| 2f64.sqrt() * (std::f64::consts::TAU * freq_hz * i as f64 / sample_hz).sin() + noise.sample(&mut rng))
+        .collect();
+    let share = removed_share(tone, 1.0);
+    assert!(share > 0.7, "the line probe took {share} of the tone's variance");
+    let quiet: Vec<f64> = (0..n).map(|_| noise.sample(&mut rng)).collect();
+    let share = removed_share(quiet, 1.0);
+    assert!(share < 0.01, "the line probe took {share} of white noise");
 }

@@ -26,7 +26,8 @@ use firmware_sim::effect::Effect;
 pub use self::actuator::{ActuatorDelay, ActuatorLag, fractional_delay};
 pub use self::aerodynamic::{Coupling, Recalibration, RollDamping, VortexLag};
 pub use self::structure::{
-    BalanceResonance, BiasDrift, DRIFT_KNOT_SPACING_S, RESONANCE_DAMPING, lowpass2, resonator, step_times_s,
+    BalanceResonance, BiasDrift, DRIFT_KNOT_SPACING_S, RESONANCE_DAMPING, band_pass, lowpass2, resonance_seeds_hz,
+    resonator, step_times_s,
 };
 pub use self::tare::{GravityTare, InertialTare};
 use super::streams::RunStreams;
@@ -174,8 +175,8 @@ pub enum Shape {
         drive: Drive,
         /// Whether the moment is the state or its deficit from the quasi-steady input.
         law: SlowLaw,
-        /// The angles of attack where the state acts.
-        band: AlphaBand,
+        /// The angle of attack from which the state acts upward, deg (`None`: at every angle).
+        at_alpha_deg: Option<f64>,
     },
     /// A second-order structural mode.
     Mode {
@@ -351,59 +352,6 @@ impl SlowLaw {
     }
 }
 
-/// The angles of attack where a second flow state acts: every angle, or a band of them (the
-/// contract's "at every alpha or only at some": a flow state sets in or breaks down with
-/// incidence, so the angles where it acts are a range of the campaign's angles; a state at low
-/// and high incidence but not between is two states).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct AlphaBand {
-    /// The lowest angle where the state acts, deg (`None`: from the campaign's lowest).
-    pub from_deg: Option<f64>,
-    /// The highest angle where the state acts, deg (`None`: to the campaign's highest).
-    pub to_deg: Option<f64>,
-}
-
-/// Most distinct angles of attack for which every band is profiled; above it, only the bands
-/// open at one end (from an angle upward, up to an angle), which keeps the grid linear in the
-/// number of angles.
-pub const MAX_BAND_ANGLES: usize = 6;
-
-impl AlphaBand {
-    /// Every angle of attack.
-    pub const ALL: Self = Self { from_deg: None, to_deg: None };
-
-    /// Whether the state acts at `alpha_deg`.
-    #[must_use]
-    pub fn holds(self, alpha_deg: f64) -> bool {
-        self.from_deg.is_none_or(|from| alpha_deg >= from - 1e-6) && self.to_deg.is_none_or(|to| alpha_deg <= to + 1e-6)
-    }
-
-    /// The band's profiled ends (an open end is no parameter).
-    #[must_use]
-    pub const fn n_ends(self) -> usize {
-        self.from_deg.is_some() as usize + self.to_deg.is_some() as usize
-    }
-
-    /// Every contiguous band of `alphas_deg` (sorted, distinct), every angle first; above
-    /// [`MAX_BAND_ANGLES`] angles, only the bands open at one end.
-    #[must_use]
-    pub fn bands(alphas_deg: &[f64]) -> Vec<Self> {
-        let n = alphas_deg.len();
-        let mut out = vec![Self::ALL];
-        for low in 0..n {
-            for high in low..n {
-                let from_deg = (low > 0).then(|| alphas_deg[low]);
-                let to_deg = (high + 1 < n).then(|| alphas_deg[high]);
-                let open_at_one_end = from_deg.is_none() || to_deg.is_none();
-                if (from_deg.is_some() || to_deg.is_some()) && (n <= MAX_BAND_ANGLES || open_at_one_end) {
-                    out.push(Self { from_deg, to_deg });
-                }
-            }
-        }
-        out
-    }
-}
-
 /// What drives a second flow state (one at a time: the lags of the sideslip and of the rate
 /// together span the roll angle itself, a static moment, not a lag).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -481,7 +429,7 @@ impl Form {
             Shape::Lag { .. } | Shape::RateLimit { .. } | Shape::Settle { .. } => 1,
             Shape::Delay { smoothing_s, .. } => 1 + (smoothing_s > 0.0) as usize,
             Shape::SecondOrderLag { .. } => 2,
-            Shape::SlowState { band, .. } => 1 + band.n_ends(),
+            Shape::SlowState { at_alpha_deg, .. } => 1 + at_alpha_deg.is_some() as usize,
             Shape::Tare { corner_hz, .. } => corner_hz.is_some() as usize,
             Shape::Interaction { lag_s, .. } => (lag_s > 0.0) as usize,
             // Every step's time is profiled, in every run.
@@ -537,17 +485,14 @@ impl Form {
                 ("order", FormValue::Number(2.0)),
             ],
             Shape::RateLimit { full_stroke_s } => vec![("full_stroke_s", FormValue::Number(full_stroke_s))],
-            Shape::SlowState { tau_s, drive, law, band } => {
+            Shape::SlowState { tau_s, drive, law, at_alpha_deg } => {
                 let mut entries = vec![
                     ("tau_s", FormValue::Number(tau_s)),
                     ("drive", FormValue::Choice(drive.name())),
                     ("law", FormValue::Choice(law.name())),
                 ];
-                if let Some(from_deg) = band.from_deg {
-                    entries.push(("from_alpha_deg", FormValue::Number(from_deg)));
-                }
-                if let Some(to_deg) = band.to_deg {
-                    entries.push(("to_alpha_deg", FormValue::Number(to_deg)));
+                if let Some(alpha_deg) = at_alpha_deg {
+                    entries.push(("at_alpha_deg", FormValue::Number(alpha_deg)));
                 }
                 entries
             }
@@ -752,6 +697,9 @@ pub struct Context<'a> {
     pub slow_tau_min_s: f64,
     /// Lowest natural frequency of the balance-resonance candidate, Hz ([`resonance_min_hz`]).
     pub resonance_min_hz: f64,
+    /// Peaks of the balance residual's spectrum that the resonance family adds to its grid,
+    /// Hz ([`resonance_seeds_hz`]).
+    pub resonance_seeds_hz: Vec<f64>,
     /// The recording's angles of attack, deg, ascending (the groups of a per-alpha gain).
     pub alphas_deg: Vec<f64>,
     /// Duration of the longest run, s (the drift's knots).
@@ -825,6 +773,7 @@ pub(crate) fn test_context() -> Context<'static> {
         n_runs: 2,
         slow_tau_min_s: 0.1,
         resonance_min_hz: 4.0,
+        resonance_seeds_hz: Vec::new(),
         alphas_deg: vec![0.0, 20.0],
         longest_run_s: 10.0,
         two_jets: true,
@@ -917,7 +866,7 @@ mod tests {
     #[test]
     fn form_entries_name_every_parameter_and_count_the_profiled_ones() {
         let form = Form {
-            shape: Shape::SlowState { tau_s: 0.5, drive: Drive::RollRate, law: SlowLaw::State, band: AlphaBand::ALL },
+            shape: Shape::SlowState { tau_s: 0.5, drive: Drive::RollRate, law: SlowLaw::State, at_alpha_deg: None },
             per_alpha: true,
         };
         let entries = form.entries();

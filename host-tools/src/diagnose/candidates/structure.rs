@@ -73,10 +73,83 @@ const DRIFT_MAX_STEPS: u8 = 3;
 pub struct BalanceResonance;
 
 impl BalanceResonance {
-    fn band_hz(sample_hz: f64, context: &Context<'_>) -> (f64, f64) {
+    /// The band the family searches, Hz.
+    #[must_use]
+    pub fn band_hz(sample_hz: f64, resonance_min_hz: f64) -> (f64, f64) {
         let top_hz = (0.35 * sample_hz).min(300.0);
-        (context.resonance_min_hz.min(0.5 * top_hz), top_hz)
+        (resonance_min_hz.min(0.5 * top_hz), top_hz)
     }
+}
+
+/// Most peaks of the residual's spectrum added to the resonance family's coarse grid.
+const MAX_SPECTRAL_SEEDS: usize = 4;
+
+/// Length of the spectral windows of [`resonance_seeds_hz`], s (about 0.5 Hz bins), at most one
+/// stretch of fit samples between two selection blocks.
+const SEED_WINDOW_S: f64 = 2.0;
+
+/// Chance that white noise seeds a peak anywhere in the band (the Bonferroni share per bin).
+const SEED_FALSE_RATE: f64 = 0.01;
+
+/// The frequencies of the residual's spectral peaks in `band_hz`, strongest first: at most
+/// `MAX_SPECTRAL_SEEDS` bins that are local maxima and stand at least `RINGING_MIN_PEAK`
+/// times above the median of their neighbours (`ledger::spectral_peak`'s floor), and beyond
+/// what the estimate's own scatter gives white noise anywhere in the band: a Welch average of
+/// `K` windows is `chi2(2K) / 2K` times the true density (Welch 1967), so a bin must exceed
+/// that ratio's `1 - SEED_FALSE_RATE / bins` quantile. From the training part's fit samples only
+/// (Welch windows inside each stretch between selection blocks).
+///
+/// Why: a lightly damped mode off the coarse grid is nearly in quadrature with the grid's
+/// neighbouring modes (a mode's phase turns by 180 deg across its band, `2 zeta` of its
+/// frequency: 2 % at `zeta = 0.01`, where the grid's steps are about 10 %), so no coarse form
+/// correlates with it and the refinement never comes near. Its spectral peak sits at its
+/// frequency whatever its damping, to a bin.
+#[must_use]
+pub fn resonance_seeds_hz(runs: &[RunStreams], residuals: &[Vec<f64>], band_hz: (f64, f64)) -> Vec<f64> {
+    let Some(sample_hz) = runs.first().map(|run| run.sample_hz) else { return Vec::new() };
+    let window = (SEED_WINDOW_S * sample_hz) as usize;
+    let mut stretches: Vec<&[f64]> = Vec::new();
+    for (run, residual) in runs.iter().zip(residuals) {
+        let mut start = None;
+        for idx in run.training.clone().chain(std::iter::once(usize::MAX)) {
+            let usable = idx != usize::MAX && run.is_fit_sample(idx) && residual[idx].is_finite();
+            match (usable, start) {
+                (true, None) => start = Some(idx),
+                (false, Some(first)) => {
+                    if idx.min(run.training.end) - first >= window {
+                        stretches.push(&residual[first..idx.min(run.training.end)]);
+                    }
+                    start = None;
+                }
+                _ => {}
+            }
+        }
+    }
+    let Some(spectrum) = crate::diagnose::ledger::welch_psd(&stretches, sample_hz, window) else { return Vec::new() };
+    let psd = &spectrum.psd;
+    let neighbours = crate::diagnose::ledger::PEAK_NEIGHBOUR_BINS;
+    let bins = spectrum.freq_hz.iter().filter(|f| (band_hz.0..=band_hz.1).contains(*f)).count().max(1);
+    let dof = 2.0 * spectrum.n_windows as f64;
+    let scatter = statrs::distribution::ChiSquared::new(dof)
+        .map(|chi2| statrs::distribution::ContinuousCDF::inverse_cdf(&chi2, 1.0 - SEED_FALSE_RATE / bins as f64) / dof)
+        .unwrap_or(f64::INFINITY);
+    let least_ratio = RINGING_MIN_PEAK.max(scatter);
+    let mut peaks: Vec<(f64, f64)> = (1..psd.len().saturating_sub(1))
+        .filter(|&idx| (band_hz.0..=band_hz.1).contains(&spectrum.freq_hz[idx]))
+        .filter(|&idx| psd[idx] > psd[idx - 1] && psd[idx] >= psd[idx + 1])
+        .filter_map(|idx| {
+            let mut around: Vec<f64> = (idx.saturating_sub(neighbours)..=(idx + neighbours).min(psd.len() - 1))
+                .filter(|&j| j != idx && psd[j].is_finite())
+                .map(|j| psd[j])
+                .collect();
+            around.sort_by(f64::total_cmp);
+            let floor = crate::diagnose::ledger::sorted_quantile(&around, 0.5);
+            let ratio = psd[idx] / floor;
+            (floor > 0.0 && ratio >= least_ratio).then_some((ratio, spectrum.freq_hz[idx]))
+        })
+        .collect();
+    peaks.sort_by(|a, b| b.0.total_cmp(&a.0));
+    peaks.into_iter().take(MAX_SPECTRAL_SEEDS).map(|(_, freq_hz)| freq_hz).collect()
 }
 
 /// `bias_drift`: a slow drift of the zero per run, from the run's own tare at its start: a
@@ -105,10 +178,13 @@ impl BalanceCandidate for BalanceResonance {
         true
     }
 
+    /// The coarse grid, and the residual's spectral peaks ([`resonance_seeds_hz`]).
     fn shapes(&self, sample_hz: f64, context: &Context<'_>) -> Vec<Shape> {
-        let (low, high) = Self::band_hz(sample_hz, context);
+        let (low, high) = Self::band_hz(sample_hz, context.resonance_min_hz);
         let mut shapes = Vec::new();
-        for freq_hz in log_grid(low, high, RESONANCE_COARSE) {
+        for freq_hz in
+            log_grid(low, high, RESONANCE_COARSE).into_iter().chain(context.resonance_seeds_hz.iter().copied())
+        {
             for zeta in RESONANCE_DAMPING_COARSE {
                 for drive_corner_hz in RESONANCE_CORNERS_COARSE {
                     shapes.push(Shape::Mode { freq_hz, zeta, drive_corner_hz });
@@ -120,7 +196,7 @@ impl BalanceCandidate for BalanceResonance {
     }
 
     fn refine(&self, best: &Shape, sample_hz: f64, context: &Context<'_>) -> Vec<Shape> {
-        let (low, high) = Self::band_hz(sample_hz, context);
+        let (low, high) = Self::band_hz(sample_hz, context.resonance_min_hz);
         let ratio = super::grid_ratio(low, high, RESONANCE_COARSE);
         if let Shape::Ringing { freq_hz, .. } = *best {
             return super::around(freq_hz, ratio, RESONANCE_FINE, low, high)
@@ -584,6 +660,33 @@ mod tests {
         run.residual = coloured.iter().map(|c| c + noise.sample(&mut rng)).collect();
         let columns = BalanceResonance.columns(&Shape::Ringing { freq_hz: 5.0, zeta: 0.07 }, &run, 0, &test_context());
         assert!(columns.iter().all(|c| c.iter().all(|v| *v == 0.0)), "coloured noise is no rung mode");
+    }
+
+    /// A mode of damping 0.01 at 27.3 Hz, between two points of the coarse grid, rung by white
+    /// noise under white noise of a third of its RMS: its spectral peak is a seed within a bin
+    /// (0.5 Hz) of its frequency, and white noise alone seeds nothing.
+    #[test]
+    fn a_narrow_mode_off_the_grid_seeds_its_own_frequency() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        let (sample_hz, n, freq_hz, zeta) = (1000.0, 20_000, 27.3, 0.01);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let white = Normal::new(0.0, 1.0).unwrap();
+        let drive: Vec<f64> = (0..n).map(|_| white.sample(&mut rng)).collect();
+        let mode = resonator(&drive, freq_hz, zeta, 1.0 / sample_hz);
+        let mode_rms = (mode.iter().map(|x| x * x).sum::<f64>() / n as f64).sqrt();
+        let noise = Normal::new(0.0, mode_rms / 3.0).unwrap();
+        let mut run = synthetic_run(sample_hz, vec![vec![0.0; n]], vec![vec![0.0; n]]);
+        let residual: Vec<f64> = mode.iter().map(|m| m + noise.sample(&mut rng)).collect();
+        run.residual.clone_from(&residual);
+        let band_hz = BalanceResonance::band_hz(sample_hz, 4.0);
+        let grid = log_grid(band_hz.0, band_hz.1, RESONANCE_COARSE);
+        let nearest = grid.iter().map(|f| (f / freq_hz).ln().abs()).fold(f64::INFINITY, f64::min);
+        assert!(nearest > 2.0 * zeta, "the mode lies off the grid");
+        let seeds = resonance_seeds_hz(std::slice::from_ref(&run), &[residual], band_hz);
+        assert!((seeds[0] - freq_hz).abs() <= 0.5, "{seeds:?}");
+        let quiet: Vec<f64> = (0..n).map(|_| noise.sample(&mut rng)).collect();
+        assert_eq!(resonance_seeds_hz(std::slice::from_ref(&run), &[quiet], band_hz), Vec::<f64>::new());
     }
 
     /// A stiff mode (35 Hz, damping 0.09) driven by a slow roll (sines of 0.3 to 2.7 Hz) that
