@@ -6,6 +6,7 @@ import _thread
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import threading
@@ -272,9 +273,15 @@ def test_ctrl_c_stops_a_long_run(model):
     n = 4_000_000
     zeros, alpha, cp = np.zeros(n), np.full(n, 20.0), np.full((n, 12), -0.3)
     estimator = rollest.Estimator(model)
+    # A process started in the background of a shell without job control ignores SIGINT, and
+    # then `interrupt_main` does nothing: Python's own handler is put in place for the test.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     started = time.perf_counter()
-    with pytest.raises(KeyboardInterrupt):
-        threading.Timer(0.05, _thread.interrupt_main).start()
-        estimator._native.run(zeros, alpha, zeros, zeros, cp)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            threading.Timer(0.05, _thread.interrupt_main).start()
+            estimator._native.run(zeros, alpha, zeros, zeros, cp)
+    finally:
+        signal.signal(signal.SIGINT, previous)
     # The whole run takes over a second; the interrupt lands within one chunk of steps.
     assert time.perf_counter() - started < 0.6
