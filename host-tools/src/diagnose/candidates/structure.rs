@@ -93,7 +93,7 @@ const SEED_FALSE_RATE: f64 = 0.01;
 
 /// The frequencies of the residual's spectral peaks in `band_hz`, strongest first: at most
 /// `MAX_SPECTRAL_SEEDS` bins that are local maxima and stand at least `RINGING_MIN_PEAK`
-/// times above the median of their neighbours (`ledger::spectral_peak`'s floor), and beyond
+/// times above the median of their neighbours (`ledger::local_peak_ratio`), and beyond
 /// what the estimate's own scatter gives white noise anywhere in the band: a Welch average of
 /// `K` windows is `chi2(2K) / 2K` times the true density (Welch 1967), so a bin must exceed
 /// that ratio's `1 - SEED_FALSE_RATE / bins` quantile. From the training part's fit samples only
@@ -127,7 +127,6 @@ pub fn resonance_seeds_hz(runs: &[RunStreams], residuals: &[Vec<f64>], band_hz: 
     }
     let Some(spectrum) = crate::diagnose::ledger::welch_psd(&stretches, sample_hz, window) else { return Vec::new() };
     let psd = &spectrum.psd;
-    let neighbours = crate::diagnose::ledger::PEAK_NEIGHBOUR_BINS;
     let bins = spectrum.freq_hz.iter().filter(|f| (band_hz.0..=band_hz.1).contains(*f)).count().max(1);
     let dof = 2.0 * spectrum.n_windows as f64;
     let scatter = statrs::distribution::ChiSquared::new(dof)
@@ -138,14 +137,8 @@ pub fn resonance_seeds_hz(runs: &[RunStreams], residuals: &[Vec<f64>], band_hz: 
         .filter(|&idx| (band_hz.0..=band_hz.1).contains(&spectrum.freq_hz[idx]))
         .filter(|&idx| psd[idx] > psd[idx - 1] && psd[idx] >= psd[idx + 1])
         .filter_map(|idx| {
-            let mut around: Vec<f64> = (idx.saturating_sub(neighbours)..=(idx + neighbours).min(psd.len() - 1))
-                .filter(|&j| j != idx && psd[j].is_finite())
-                .map(|j| psd[j])
-                .collect();
-            around.sort_by(f64::total_cmp);
-            let floor = crate::diagnose::ledger::sorted_quantile(&around, 0.5);
-            let ratio = psd[idx] / floor;
-            (floor > 0.0 && ratio >= least_ratio).then_some((ratio, spectrum.freq_hz[idx]))
+            let ratio = crate::diagnose::ledger::local_peak_ratio(&spectrum, idx)?;
+            (ratio >= least_ratio).then_some((ratio, spectrum.freq_hz[idx]))
         })
         .collect();
     peaks.sort_by(|a, b| b.0.total_cmp(&a.0));

@@ -54,7 +54,7 @@ pub use crosscorr::{CrossCorrelation, cross_correlation};
 pub use innovations::{ChannelInnovation, channel_innovation, difference_noise_var, second_difference_noise_var};
 pub use regimes::{RegimeShare, regime_shares};
 pub use spectrum::{
-    BandShare, Coherence, PEAK_NEIGHBOUR_BINS, SpectralPeak, Spectrum, band_shares, coherence, spectral_peak, welch_psd,
+    BandShare, Coherence, SpectralPeak, Spectrum, band_shares, coherence, local_peak_ratio, spectral_peak, welch_psd,
 };
 pub use whiteness::{Whiteness, ljung_box};
 

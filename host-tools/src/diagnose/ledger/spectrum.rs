@@ -142,27 +142,31 @@ pub struct SpectralPeak {
 /// itself excluded); a median rather than a mean so that the peak's own leakage does not raise
 /// its floor. Returns `None` when no bin in the range has a positive floor.
 pub fn spectral_peak(spectrum: &Spectrum, min_hz: f64, max_hz: f64) -> Option<SpectralPeak> {
-    let psd = &spectrum.psd;
     let mut best: Option<SpectralPeak> = None;
-    for (idx, &freq_hz) in spectrum.freq_hz.iter().enumerate().take(psd.len()) {
+    for (idx, &freq_hz) in spectrum.freq_hz.iter().enumerate().take(spectrum.psd.len()) {
         if !(freq_hz >= min_hz && freq_hz <= max_hz) {
             continue;
         }
-        let lo = idx.saturating_sub(PEAK_NEIGHBOUR_BINS);
-        let hi = (idx + PEAK_NEIGHBOUR_BINS).min(psd.len() - 1);
-        let mut neighbours: Vec<f64> = (lo..=hi).filter(|&j| j != idx).map(|j| psd[j]).collect();
-        neighbours.retain(|p| p.is_finite());
-        neighbours.sort_by(f64::total_cmp);
-        let floor = super::sorted_quantile(&neighbours, 0.5);
-        if floor.is_nan() || floor <= 0.0 || !psd[idx].is_finite() {
-            continue;
-        }
-        let ratio = psd[idx] / floor;
+        let Some(ratio) = local_peak_ratio(spectrum, idx) else { continue };
         if best.as_ref().is_none_or(|b| ratio > b.ratio_to_local_median) {
             best = Some(SpectralPeak { freq_hz, ratio_to_local_median: ratio });
         }
     }
     best
+}
+
+/// The PSD at bin `idx` over the median of up to [`PEAK_NEIGHBOUR_BINS`] bins on each side (the
+/// bin itself excluded); `None` where that floor is not positive or the bin not finite.
+#[must_use]
+pub fn local_peak_ratio(spectrum: &Spectrum, idx: usize) -> Option<f64> {
+    let psd = &spectrum.psd;
+    let lo = idx.saturating_sub(PEAK_NEIGHBOUR_BINS);
+    let hi = (idx + PEAK_NEIGHBOUR_BINS).min(psd.len().checked_sub(1)?);
+    let mut neighbours: Vec<f64> = (lo..=hi).filter(|&j| j != idx).map(|j| psd[j]).collect();
+    neighbours.retain(|p| p.is_finite());
+    neighbours.sort_by(f64::total_cmp);
+    let floor = super::sorted_quantile(&neighbours, 0.5);
+    (floor > 0.0 && psd.get(idx)?.is_finite()).then(|| psd[idx] / floor)
 }
 
 /// Magnitude-squared coherence between residual and input, with its 99 % bound under
