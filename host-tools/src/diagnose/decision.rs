@@ -16,9 +16,10 @@ pub(super) enum Decision {
 }
 
 impl Decision {
-    /// A sensor effect stronger than any balance effect wins; named balance effects win unless
-    /// the probe still finds structure after them or they leave a gap the contract does not
-    /// let pass ([`ProbeResult::gap_left`]); a gap beyond the sim's own, or structure in
+    /// A sensor effect stronger than any balance effect wins; named balance effects win when one
+    /// of them is an effect of the vocabulary (not recalibration alone), unless the probe still
+    /// finds structure after them or they leave a gap the contract does not let pass
+    /// ([`ProbeResult::gap_left`]); a gap beyond the sim's own, or structure in
     /// the remainder, is unattributed only when something predicts part of it out of sample
     /// (a bigger but unpredictable gap is the sim's own scatter from recording to recording,
     /// not an effect).
@@ -37,7 +38,15 @@ impl Decision {
             return Self::Sensor(Box::new(finding.clone()));
         }
         if !balance.named.is_empty() {
-            return if probe.remainder_structured || probe.gap_left() { Self::Unattributed } else { Self::Balance };
+            // Recalibration names no effect: a gap a gain of the sim's blocks spans, with nothing
+            // of the vocabulary beside it, is real and unattributed (the contract's balance
+            // saturation or a stiffening mount look like a gain on most motions).
+            let names_an_effect = balance.named.iter().any(|p| p.candidate.effect().is_some());
+            return if !names_an_effect || probe.remainder_structured || probe.gap_left() {
+                Self::Unattributed
+            } else {
+                Self::Balance
+            };
         }
         // Nothing named: a gap is unattributed only where something predicts at least an effect
         // of half the noise RMS of it out of sample (the noise as the naming threshold counts it:
@@ -222,6 +231,26 @@ pub(super) fn describe_structure(
         "a gap above the noise floor in {} with no candidate that explains it{best}; a generic probe (odd powers of the roll angle, rate nonlinearity, powers of the moment, slowly varying gain on the moment, lagged inputs) finds {:.2} noise variances of structure",
         if kinds.is_empty() { "the remainder".to_owned() } else { kinds.join(", ") },
         probe_share
+    )
+}
+
+/// When recalibration alone spans the gap: its gains in words, for the structure of an
+/// unattributed gap (empty otherwise). A gain of the sim's blocks is no effect of the
+/// vocabulary: the sim's coefficients are off, or the balance reads the moment through a
+/// calibration, a saturation or a stiffening mount that a gain matches on most motions.
+pub(super) fn gain_note(balance: &BalanceAttribution, runs: &[streams::RunStreams], context: &Context<'_>) -> String {
+    let Some(top) = balance.named.first().filter(|_| balance.named.iter().all(|p| p.candidate.effect().is_none()))
+    else {
+        return String::new();
+    };
+    let columns = attribution::all_columns(top.candidate, &top.form, runs, context);
+    let gains: Vec<String> = candidates::physical_params(top.candidate, &top.form, &top.fit.beta, context, &columns)
+        .iter()
+        .filter_map(|(name, value)| value.as_f64().map(|gain| format!("{name} = {gain:.3}")))
+        .collect();
+    format!(
+        "a gain of the sim's blocks spans it ({}): the sim's coefficients are off, or the balance reads the moment through a wrong calibration, a saturation or a stiffening mount, none of them an effect of the vocabulary; ",
+        gains.join(", ")
     )
 }
 

@@ -243,8 +243,10 @@ pub fn diagnose(
                     )
                 })
                 .unwrap_or_default();
+            let gain_note = gain_note(&balance, runs, &context);
             unexplained = Some(Unexplained {
                 description: encoder_note
+                    + &gain_note
                     + &describe_structure(
                         runs,
                         &gaps.excess_runs,

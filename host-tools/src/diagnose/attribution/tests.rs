@@ -442,6 +442,19 @@ fn a_named_balance_effect_is_the_verdict_unless_structure_remains() {
     assert_eq!(decide(&named, &probe(0.0, true), &no_sensor()).verdict(), Verdict::Unattributed);
 }
 
+/// Recalibration names no effect: a gap it alone spans is unattributed, and beside an effect of
+/// the vocabulary the effect is the verdict.
+#[test]
+fn a_gap_only_recalibration_spans_is_unattributed() {
+    use crate::diagnose::candidates::Recalibration;
+    let gain = profiled(&Recalibration, 2.0, 100.0);
+    let alone = balance(vec![gain.clone()], vec![gain.clone()]);
+    assert!(matches!(decide(&alone, &probe(0.0, false), &no_sensor()), Decision::Unattributed));
+    let tare = profiled(&InertialTare, 2.0, 100.0);
+    let beside = balance(vec![gain.clone(), tare.clone()], vec![gain, tare]);
+    assert_eq!(decide(&beside, &probe(0.0, false), &no_sensor()).verdict(), Verdict::Effect);
+}
+
 /// A delay or a lag keeps the plant's static gain: fitted at eleven times the plant's moment
 /// (or at less than half of it) it is not that effect; a gain of 0.7 is. A tare's gain is its
 /// size, free.
