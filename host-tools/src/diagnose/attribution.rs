@@ -7,7 +7,7 @@
 use rayon::prelude::*;
 
 use super::candidates::{self, Candidate, Context, Form};
-use super::regression::{self, Fit, HeldoutGap, Segment};
+use super::regression::{self, Fit, HeldoutGap, Interleave, Segment};
 use super::sensor::delta_bic;
 use super::streams::RunStreams;
 
@@ -37,6 +37,9 @@ pub struct Profiled {
     pub active_share: f64,
     /// The same over the selection part's samples.
     pub selection_active_share: f64,
+    /// Where the selection part holds too little of the effect to confirm even the fitted
+    /// effect itself: the training part cross-validated instead.
+    pub cross_validation: Option<CrossValidation>,
 }
 
 impl Profiled {
@@ -76,8 +79,18 @@ impl Profiled {
     /// the training part does (a roll damping whose blocks fell in the fastest rolling), the
     /// first measure is the larger. Each alone named nothing on the clean recordings of either
     /// tunnel (0 of 20), so neither does their larger.
+    ///
+    /// Where the selection part cannot judge and the training part was cross-validated instead
+    /// ([`CrossValidation`]), only what the folds remove per sample where it acts counts, and
+    /// only when their pooled slope stands `CONFIRM_Z` standard errors above zero: the training
+    /// part's fit of a form chosen there is not evidence for itself.
     #[must_use]
     pub fn selected(&self) -> f64 {
+        if let Some(cross) = &self.cross_validation {
+            let Slope { value, standard_error } = cross.slope;
+            let confirmed = value.is_finite() && standard_error.is_finite() && value >= CONFIRM_Z * standard_error;
+            return if confirmed { (cross.removed / cross.active_share.max(f64::MIN_POSITIVE)).max(0.0) } else { 0.0 };
+        }
         let removed = self.selection.removed() / self.selection_active_share.max(f64::MIN_POSITIVE);
         let Slope { value, standard_error } = self.selection_slope;
         let confirmed = if value.is_finite() && standard_error.is_finite() && value >= CONFIRM_Z * standard_error {
@@ -117,6 +130,110 @@ fn selection_slope(
     noise_var: f64,
     autocorrelation_time: f64,
 ) -> Slope {
+    let (rp, pp) = slope_sums(segments, columns, fit);
+    if pp > 0.0 {
+        Slope { value: rp / pp, standard_error: (noise_var * autocorrelation_time.max(1.0) / pp).sqrt() }
+    } else {
+        Slope { value: f64::NAN, standard_error: f64::NAN }
+    }
+}
+
+/// A candidate cross-validated over the training part: each of the [`Interleave::EVERY`]
+/// positions of the interleaved blocks in turn is set apart, the form with the most evidence
+/// ([`delta_bic`]) among `forms` is chosen and fitted on the other blocks, and judged on the
+/// set-apart blocks; the folds' sums give one calibration slope and one gap (Stone 1974; the
+/// form chosen within each fold, so that the choice among many forms does not confirm itself:
+/// Varma & Simon 2006). `None` without a prediction anywhere.
+fn cross_validate(
+    candidate: Candidate,
+    forms: &[Form],
+    runs: &[RunStreams],
+    residuals: &[Vec<f64>],
+    context: &Context<'_>,
+    noise_var: f64,
+    autocorrelation_time: f64,
+) -> Option<CrossValidation> {
+    let segments = segments(runs, residuals);
+    let folds: Vec<Vec<Segment<'_>>> = (0..Interleave::EVERY)
+        .map(|position| {
+            segments
+                .iter()
+                .map(|segment| Segment { select: segment.select.fold(position), ..segment.clone() })
+                .collect()
+        })
+        .collect();
+    // Per form, per fold: its evidence without the fold, and what it does on the fold.
+    let per_form: Vec<Vec<(f64, FoldSums)>> = forms
+        .par_iter()
+        .map(|form| {
+            let columns = all_columns(candidate, form, runs, context);
+            folds
+                .iter()
+                .map(|fold| {
+                    regression::fit_through_origin(fold, &columns).map_or(
+                        (f64::NEG_INFINITY, FoldSums::default()),
+                        |fit| {
+                            let evidence = delta_bic(&fit, autocorrelation_time, fit.beta.len() + form.n_profiled());
+                            let (rp, pp) = slope_sums(fold, &columns, &fit);
+                            let gap = regression::selection_gap(fold, &columns, &fit.beta, &fit.touched);
+                            let active =
+                                active_share(fold, &columns, &fit.touched, |segment, i| segment.select.contains(i));
+                            let n = gap.n as f64;
+                            (evidence, FoldSums { rp, pp, removed: gap.removed() * n, active: active * n, n })
+                        },
+                    )
+                })
+                .collect()
+        })
+        .collect();
+    let mut sums = FoldSums::default();
+    for fold in 0..folds.len() {
+        if let Some((_, best)) = per_form.iter().map(|folds| folds[fold]).max_by(|a, b| a.0.total_cmp(&b.0)) {
+            sums = FoldSums {
+                rp: sums.rp + best.rp,
+                pp: sums.pp + best.pp,
+                removed: sums.removed + best.removed,
+                active: sums.active + best.active,
+                n: sums.n + best.n,
+            };
+        }
+    }
+    (sums.pp > 0.0 && sums.n > 0.0).then(|| CrossValidation {
+        slope: Slope {
+            value: sums.rp / sums.pp,
+            standard_error: (noise_var * autocorrelation_time.max(1.0) / sums.pp).sqrt(),
+        },
+        removed: sums.removed / sums.n,
+        active_share: sums.active / sums.n,
+    })
+}
+
+/// One fold's sums: `sum r p`, `sum p^2`, the mean square removed times the samples, the active
+/// share times the samples, and the samples.
+#[derive(Debug, Clone, Copy, Default)]
+struct FoldSums {
+    rp: f64,
+    pp: f64,
+    removed: f64,
+    active: f64,
+    n: f64,
+}
+
+/// What a cross-validation over the training part confirms of a candidate
+/// ([`Profiled::selected`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CrossValidation {
+    /// The set-apart blocks' residual on the prediction there, pooled over the folds.
+    pub slope: Slope,
+    /// Mean square removed per set-apart sample, pooled over the folds.
+    pub removed: f64,
+    /// Share of the set-apart samples where the prediction acts.
+    pub active_share: f64,
+}
+
+/// `sum r p` and `sum p^2` over the selection samples of the touched runs (finite residuals),
+/// `p` the fitted effect's prediction.
+fn slope_sums(segments: &[Segment<'_>], columns: &[Vec<Vec<f64>>], fit: &Fit) -> (f64, f64) {
     let (mut rp, mut pp) = (0.0, 0.0);
     for ((segment, cols), _) in segments.iter().zip(columns).zip(&fit.touched).filter(|(_, touched)| **touched) {
         for i in segment.select.samples().filter(|&i| segment.residual[i].is_finite()) {
@@ -125,11 +242,7 @@ fn selection_slope(
             pp += predicted * predicted;
         }
     }
-    if pp > 0.0 {
-        Slope { value: rp / pp, standard_error: (noise_var * autocorrelation_time.max(1.0) / pp).sqrt() }
-    } else {
-        Slope { value: f64::NAN, standard_error: f64::NAN }
-    }
+    (rp, pp)
 }
 
 /// Columns of a candidate in one form, for every run.
@@ -183,11 +296,31 @@ pub fn profile(
         .collect();
     fits.extend(finer.par_iter().filter_map(evaluate).collect::<Vec<_>>());
     let profile = fits.iter().map(|(form, fit, _)| (form.coordinate().map_or(0.0, |(_, v)| v), fit.ssr)).collect();
+    let profiled_forms: Vec<Form> = fits.iter().map(|(form, _, _)| *form).collect();
     let (form, fit, delta_bic) = fits.into_iter().max_by(|a, b| a.2.total_cmp(&b.2))?;
     let columns = all_columns(candidate, &form, runs, context);
     let selection = regression::selection_gap(&segments, &columns, &fit.beta, &fit.touched);
     let heldout = regression::heldout_gap(&segments, &columns, &fit.beta, &fit.touched);
     let selection_slope = selection_slope(&segments, &columns, &fit, selection.noise_var, autocorrelation_time);
+    // Selection blocks that hold too little of the effect to confirm even the fitted effect
+    // itself (a delay acts at the blowing's few switches, which the blocks may all miss): the
+    // training part is cross-validated instead, the form chosen again without each fold.
+    // Only for a candidate with decisive evidence, the only kind that can be named.
+    let selection_can_judge =
+        (selection_slope.standard_error * CONFIRM_Z).is_finite() && selection_slope.standard_error * CONFIRM_Z <= 1.0;
+    let cross_validation = (delta_bic >= super::MIN_DELTA_BIC && !selection_can_judge)
+        .then(|| {
+            cross_validate(
+                candidate,
+                &profiled_forms,
+                runs,
+                residuals,
+                context,
+                selection.noise_var,
+                autocorrelation_time,
+            )
+        })
+        .flatten();
     let fit_share = active_share(&segments, &columns, &fit.touched, |segment, i| !segment.select.contains(i));
     let selection_share = active_share(&segments, &columns, &fit.touched, |segment, i| segment.select.contains(i));
     Some(Profiled {
@@ -201,6 +334,7 @@ pub fn profile(
         selection_slope,
         active_share: fit_share,
         selection_active_share: selection_share,
+        cross_validation,
     })
 }
 

@@ -174,8 +174,10 @@ pub fn diagnose(
     // A roll angle recorded in steps coarser than its motion spikes the rate every balance
     // candidate is driven by: what they explain is the encoder's, outside the vocabulary.
     let coarse_encoder = encoder::quantisation(&streams.runs);
+    // A play in the encoder's drive kinks the rate at every reversal: the same holds.
+    let encoder_play = encoder::play(&streams.runs);
     let decision = match decision {
-        Decision::Balance if coarse_encoder.is_some() => Decision::Unattributed,
+        Decision::Balance if coarse_encoder.is_some() || encoder_play.is_some() => Decision::Unattributed,
         other => other,
     };
 
@@ -242,7 +244,18 @@ pub fn diagnose(
                         q.quantum_deg / q.motion_per_sample_deg
                     )
                 })
-                .unwrap_or_default();
+                .unwrap_or_default()
+                + &encoder_play
+                    .map(|play| {
+                        format!(
+                            "the recorded roll angle holds {:.3} s at each reversal and leaves it {:.1} times faster than it arrived, with {:.0} % of that rate at once (a play in the encoder of about {:.2} deg: the rate from it kinks there); ",
+                            play.hold_s,
+                            play.exit_to_entry,
+                            100.0 * play.release_share,
+                            play.width_deg
+                        )
+                    })
+                    .unwrap_or_default();
             let gain_note = gain_note(&balance, runs, &context);
             unexplained = Some(Unexplained {
                 description: encoder_note

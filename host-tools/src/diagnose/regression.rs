@@ -32,6 +32,9 @@ pub struct Interleave {
     pub end: usize,
     /// Samples per block (0: no selection part).
     pub block: usize,
+    /// Which block of every [`Interleave::EVERY`] is the selection part's (the last one;
+    /// another for a fold of a cross-validation, [`Interleave::fold`]).
+    pub position: usize,
 }
 
 impl Interleave {
@@ -44,7 +47,14 @@ impl Interleave {
     #[must_use]
     pub fn over(range: std::ops::Range<usize>, sample_hz: f64) -> Self {
         let block = (range.len() / 20).clamp((0.25 * sample_hz) as usize, sample_hz as usize).max(1);
-        Self { start: range.start, end: range.end, block }
+        Self { start: range.start, end: range.end, block, position: Self::EVERY - 1 }
+    }
+
+    /// The same blocks with the `position`th of every [`Interleave::EVERY`] set apart instead:
+    /// one fold of a cross-validation over the training part (the selection blocks then fit).
+    #[must_use]
+    pub fn fold(self, position: usize) -> Self {
+        Self { position: position % Self::EVERY, ..self }
     }
 
     /// True for a selection sample.
@@ -53,7 +63,7 @@ impl Interleave {
         self.block > 0
             && idx >= self.start
             && idx < self.end
-            && ((idx - self.start) / self.block) % Self::EVERY == Self::EVERY - 1
+            && ((idx - self.start) / self.block) % Self::EVERY == self.position
     }
 
     /// The selection samples.

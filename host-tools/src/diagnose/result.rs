@@ -549,6 +549,7 @@ mod tests {
             selection_slope: crate::diagnose::attribution::Slope { value: 0.5, standard_error: 0.1 },
             active_share: 1.0,
             selection_active_share: 1.0,
+            cross_validation: None,
         };
         let summary = CandidateSummary::from_profiled(0.01)(&profiled);
         assert_eq!(summary.name, "actuator_delay");

@@ -75,6 +75,7 @@ fn profiled(candidate: Candidate, removed: f64, delta_bic: f64) -> Profiled {
         selection_slope: Slope { value: 1.0, standard_error: 0.1 },
         active_share: 1.0,
         selection_active_share: 1.0,
+        cross_validation: None,
     }
 }
 
@@ -265,6 +266,42 @@ fn profile_recovers_an_injected_inertial_tare_out_of_sample() {
     assert!(found.delta_bic >= MIN_DELTA_BIC, "{}", found.delta_bic);
     assert!(found.heldout.shrink() > 0.85, "{:?}", found.heldout);
     assert!(found.selected() > 0.0);
+}
+
+/// A run whose roll acceleration comes in bursts of 20 Hz in the middle of every block the fit
+/// uses, none in the selection blocks (each 250 samples, every fifth), and whose residual is
+/// an inertial tare of it (`gain` times it) plus white noise.
+fn bursts_outside_the_selection(seed: u64, gain: f64) -> (RunStreams, Vec<f64>) {
+    let mut run = rolling(seed, 1e-3, |_, _, n| n);
+    let select = run.select;
+    assert_eq!(select.block, 250, "the selection blocks of a {N}-sample run");
+    run.phi_ddot_rad_s2 = (0..N)
+        .map(|i| {
+            let within = i % select.block;
+            let burst = (i / select.block) % 5 != 4 && (75..175).contains(&within);
+            if burst { 40.0 * (std::f64::consts::TAU * 20.0 * i as f64 / HZ).sin() } else { 0.0 }
+        })
+        .collect();
+    let residual = run.phi_ddot_rad_s2.iter().zip(&run.residual).map(|(a, n)| gain * a + n).collect();
+    (run, residual)
+}
+
+/// An effect the selection blocks hold none of is confirmed by cross-validating the training
+/// part instead (its slope near one), and the same bursts without the effect are not confirmed.
+#[test]
+fn an_effect_the_selection_blocks_miss_is_confirmed_by_cross_validation() {
+    let context = test_context();
+    let (run, residual) = bursts_outside_the_selection(5, -3.0e-4 / context.moment_scale_nm);
+    let found = profile(&InertialTare, std::slice::from_ref(&run), &[residual], &context, 1.0).expect("a profile");
+    let cross = found.cross_validation.expect("the training part cross-validated");
+    let Slope { value, standard_error } = cross.slope;
+    assert!((value - 1.0).abs() < 0.2 && standard_error < 0.1, "{cross:?}");
+    let explained = found.explained() / found.active_share;
+    assert!((found.selected() / explained - 1.0).abs() < 0.2, "{} against {explained}", found.selected());
+
+    let (run, residual) = bursts_outside_the_selection(6, 0.0);
+    let found = profile(&InertialTare, std::slice::from_ref(&run), &[residual], &context, 1.0).expect("a profile");
+    assert_eq!(found.selected(), 0.0, "{:?}", found.cross_validation);
 }
 
 /// White noise alone holds no effect: neither tare is decisive on it.
