@@ -43,7 +43,8 @@ pub struct Signature {
     pub pressure_channel_lags: Option<super::lag_set::ChannelLags>,
     /// Per kind of run and angle of attack (`roll@20`), each pressure channel's mean innovation
     /// from the filter run without it ([`super::streams::RunStreams::innovation_alone`]) on
-    /// data the sim matches: the pressure model's own mean error there, which a fault from the
+    /// data the sim matches: the pressure model's own mean error there, where the run holds it
+    /// throughout ([`super::streams::RunStreams::steady_mean_alone`]), which a fault from the
     /// start of a run is judged beyond ([`super::streams::RunStreams::departure_alone`]).
     #[serde(default)]
     pub pressure_alone_mean: Option<BTreeMap<String, Vec<f64>>>,
@@ -97,11 +98,12 @@ pub(super) fn kind_alpha_key(kind: &str, alpha_deg: f64) -> String {
 }
 
 /// Per kind of run and angle of attack, the mean over its runs of each channel's
-/// [`RunStreams::mean_alone`] (0 for a channel never read; `None` without runs).
+/// [`RunStreams::steady_mean_alone`] (0 for a channel never read, or whose level the run does
+/// not hold throughout; `None` without runs).
 pub(super) fn pressure_alone_means(runs: &[RunStreams]) -> Option<BTreeMap<String, Vec<f64>>> {
     let mut sums: BTreeMap<String, (Vec<f64>, Vec<usize>)> = BTreeMap::new();
     for run in runs {
-        let means = run.mean_alone();
+        let means = run.steady_mean_alone();
         let entry = sums
             .entry(kind_alpha_key(run.kind.as_str(), run.alpha_deg))
             .or_insert_with(|| (vec![0.0; means.len()], vec![0; means.len()]));
@@ -215,5 +217,25 @@ mod tests {
         close(&kind_alpha_key("static", 20.0), [-0.02, 0.0]);
         assert_eq!(means.len(), 2);
         assert_eq!(default_signature().pressure_alone_mean, None, "the built-in map's own means stay its own");
+    }
+
+    /// A level the run holds throughout, under white noise of three times its size, is kept; the
+    /// same mean reached by a transient in a tenth of the run (ten times the level there) is no
+    /// level of that kind of run and is not.
+    #[test]
+    fn only_a_level_the_run_holds_throughout_is_kept() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        let n = 20_000;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let noise = Normal::new(0.0, 0.03).expect("a valid deviation");
+        let steady: Vec<f64> = (0..n).map(|_| 0.01 + noise.sample(&mut rng)).collect();
+        let transient: Vec<f64> =
+            (0..n).map(|i| if i >= 9 * n / 10 { 0.1 } else { 0.0 } + noise.sample(&mut rng)).collect();
+        let run = crate::diagnose::streams::synthetic_run(1000.0, vec![vec![0.0; n]; 2], vec![steady, transient]);
+        let kept = run.steady_mean_alone();
+        assert!((kept[0] - 0.01).abs() < 0.002, "{kept:?}");
+        assert!((run.mean_alone()[1] - 0.01).abs() < 0.002, "the transient's mean is as large");
+        assert_eq!(kept[1], 0.0, "{kept:?}");
     }
 }

@@ -44,6 +44,14 @@ pub const MODE_DRIVE_CORNERS_HZ: [f64; 4] = [KINEMATICS_CORNER_HZ, 16.0, 8.0, 4.
 /// (the regressor of a tubing lag), Hz.
 const PRESSURE_CORNER_HZ: f64 = 20.0;
 
+/// Blocks of a run over which [`RunStreams::steady_mean_alone`] takes its batch means.
+const STEADY_MEAN_BLOCKS: usize = 10;
+
+/// Standard errors from zero a run's mean innovation must stand to be a level the run holds
+/// ([`RunStreams::steady_mean_alone`]; two-sided, about 5 % by chance with nine degrees of
+/// freedom at 2.26, so 2 is a little lenient toward keeping a level).
+const STEADY_MEAN_Z: f64 = 2.0;
+
 /// Everything the diagnosis needs of one run.
 #[derive(Debug, Clone)]
 pub struct RunStreams {
@@ -148,6 +156,39 @@ impl RunStreams {
                     .filter(|value| value.is_finite())
                     .fold((0.0, 0usize), |(sum, n), value| (sum + value, n + 1));
                 if n == 0 { f64::NAN } else { sum / n as f64 }
+            })
+            .collect()
+    }
+
+    /// Per channel, [`Self::mean_alone`] where the run holds it throughout: at least
+    /// `STEADY_MEAN_Z` standard errors from zero, the standard error from the scatter of the
+    /// means of `STEADY_MEAN_BLOCKS` consecutive blocks (the batch-means estimate, which holds
+    /// under the model error's slow correlation; Schmeiser 1982); 0 elsewhere. A level the sim
+    /// reaches in part of a run only (a transient of the blowing it fits poorly) is no level of
+    /// that kind of run: another recording of it need not repeat it.
+    #[must_use]
+    pub fn steady_mean_alone(&self) -> Vec<f64> {
+        self.innovation_alone
+            .iter()
+            .map(|channel| {
+                let block_len = channel.len() / STEADY_MEAN_BLOCKS;
+                let means: Vec<f64> = (0..STEADY_MEAN_BLOCKS)
+                    .filter_map(|block| {
+                        let (sum, n) = channel[block * block_len..(block + 1) * block_len]
+                            .iter()
+                            .filter(|value| value.is_finite())
+                            .fold((0.0, 0usize), |(sum, n), value| (sum + value, n + 1));
+                        (n > 0).then(|| sum / n as f64)
+                    })
+                    .collect();
+                if block_len == 0 || means.len() < 2 {
+                    return 0.0;
+                }
+                let k = means.len() as f64;
+                let mean = means.iter().sum::<f64>() / k;
+                let variance = means.iter().map(|m| (m - mean).powi(2)).sum::<f64>() / (k - 1.0);
+                let standard_error = (variance / k).sqrt();
+                if mean.abs() >= STEADY_MEAN_Z * standard_error { mean } else { 0.0 }
             })
             .collect()
     }
