@@ -58,15 +58,21 @@ pub fn quantisation(runs: &[RunStreams]) -> Option<Quantisation> {
     (ratio(&median) >= MIN_QUANTUM_TO_MOTION).then_some(median)
 }
 
+/// Below this a step of the recorded angle is the file's rounding of one value, not a step, deg.
+const RESOLUTION_DEG: f64 = 1e-9;
+
+/// The run's recorded roll angle, deg.
+fn angle_deg(run: &RunStreams) -> Vec<f64> {
+    run.phi_rad.iter().map(|phi| phi.to_degrees()).collect()
+}
+
 /// One run's quantum and motion per sample (none for an angle that does not move).
 fn run_quantisation(run: &RunStreams) -> Option<Quantisation> {
-    let phi_deg: Vec<f64> = run.phi_rad.iter().map(|phi| phi.to_degrees()).collect();
-    // Below this a step is the file's rounding of one value, not a step of the angle.
-    let resolution_deg = 1e-9;
+    let phi_deg = angle_deg(run);
     let mut steps: Vec<f64> = phi_deg
         .windows(2)
         .map(|pair| (pair[1] - pair[0]).abs())
-        .filter(|step| step.is_finite() && *step > resolution_deg)
+        .filter(|step| step.is_finite() && *step > RESOLUTION_DEG)
         .collect();
     if steps.is_empty() {
         return None;
@@ -82,7 +88,7 @@ fn run_quantisation(run: &RunStreams) -> Option<Quantisation> {
         }
     }
     let motion_per_sample_deg = travel_deg / spanned.max(1) as f64;
-    (motion_per_sample_deg > resolution_deg).then_some(Quantisation { quantum_deg, motion_per_sample_deg })
+    (motion_per_sample_deg > RESOLUTION_DEG).then_some(Quantisation { quantum_deg, motion_per_sample_deg })
 }
 
 /// Samples either side of a reversal's hold over which the angle's rate is taken, s: short
@@ -170,12 +176,11 @@ struct Reversal {
 
 /// The reversals of one run's recorded angle.
 fn run_reversals(run: &RunStreams) -> Vec<Reversal> {
-    let phi_deg: Vec<f64> = run.phi_rad.iter().map(|phi| phi.to_degrees()).collect();
-    let resolution_deg = 1e-9;
+    let phi_deg = angle_deg(run);
     let window = ((RATE_WINDOW_S * run.sample_hz).round() as usize).max(1);
     let dt_s = 1.0 / run.sample_hz;
     let moving: Vec<usize> = (1..phi_deg.len())
-        .filter(|&i| (phi_deg[i] - phi_deg[i - 1]).abs() > resolution_deg && (phi_deg[i] - phi_deg[i - 1]).is_finite())
+        .filter(|&i| (phi_deg[i] - phi_deg[i - 1]).abs() > RESOLUTION_DEG && (phi_deg[i] - phi_deg[i - 1]).is_finite())
         .collect();
     let step = |i: usize| phi_deg[i] - phi_deg[i - 1];
     moving
