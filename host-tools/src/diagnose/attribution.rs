@@ -87,14 +87,15 @@ impl Profiled {
     #[must_use]
     pub fn selected(&self) -> f64 {
         if let Some(cross) = &self.cross_validation {
-            let Slope { value, standard_error } = cross.slope;
-            let confirmed = value.is_finite() && standard_error.is_finite() && value >= CONFIRM_Z * standard_error;
-            return if confirmed { (cross.removed / cross.active_share.max(f64::MIN_POSITIVE)).max(0.0) } else { 0.0 };
+            return if cross.slope.confirmed() {
+                (cross.removed / cross.active_share.max(f64::MIN_POSITIVE)).max(0.0)
+            } else {
+                0.0
+            };
         }
         let removed = self.selection.removed() / self.selection_active_share.max(f64::MIN_POSITIVE);
-        let Slope { value, standard_error } = self.selection_slope;
-        let confirmed = if value.is_finite() && standard_error.is_finite() && value >= CONFIRM_Z * standard_error {
-            self.explained() / self.active_share.max(f64::MIN_POSITIVE) * value.min(1.0)
+        let confirmed = if self.selection_slope.confirmed() {
+            self.explained() / self.active_share.max(f64::MIN_POSITIVE) * self.selection_slope.value.min(1.0)
         } else {
             0.0
         };
@@ -121,6 +122,24 @@ pub struct Slope {
     pub standard_error: f64,
 }
 
+impl Slope {
+    /// The slope of `sum r p` over `sum p^2`, its standard error from the noise's variance times
+    /// the residual's integrated autocorrelation time (samples); NaN without a prediction.
+    fn from_sums(rp: f64, pp: f64, noise_var: f64, autocorrelation_time: f64) -> Self {
+        if pp > 0.0 {
+            Self { value: rp / pp, standard_error: (noise_var * autocorrelation_time.max(1.0) / pp).sqrt() }
+        } else {
+            Self { value: f64::NAN, standard_error: f64::NAN }
+        }
+    }
+
+    /// Whether it stands [`CONFIRM_Z`] standard errors above zero.
+    #[must_use]
+    pub fn confirmed(&self) -> bool {
+        self.value.is_finite() && self.standard_error.is_finite() && self.value >= CONFIRM_Z * self.standard_error
+    }
+}
+
 /// The selection part's residual regressed through the origin on the fitted effect's
 /// prediction there (the touched runs, finite residuals); NaN without any prediction.
 fn selection_slope(
@@ -131,11 +150,7 @@ fn selection_slope(
     autocorrelation_time: f64,
 ) -> Slope {
     let (rp, pp) = slope_sums(segments, columns, fit);
-    if pp > 0.0 {
-        Slope { value: rp / pp, standard_error: (noise_var * autocorrelation_time.max(1.0) / pp).sqrt() }
-    } else {
-        Slope { value: f64::NAN, standard_error: f64::NAN }
-    }
+    Slope::from_sums(rp, pp, noise_var, autocorrelation_time)
 }
 
 /// A candidate cross-validated over the training part: each of the [`Interleave::EVERY`]
@@ -199,10 +214,7 @@ fn cross_validate(
         }
     }
     (sums.pp > 0.0 && sums.n > 0.0).then(|| CrossValidation {
-        slope: Slope {
-            value: sums.rp / sums.pp,
-            standard_error: (noise_var * autocorrelation_time.max(1.0) / sums.pp).sqrt(),
-        },
+        slope: Slope::from_sums(sums.rp, sums.pp, noise_var, autocorrelation_time),
         removed: sums.removed / sums.n,
         active_share: sums.active / sums.n,
     })

@@ -44,11 +44,7 @@ pub struct Quantisation {
 /// `MIN_QUANTUM_TO_MOTION` times its motion per sample (the median over those runs).
 #[must_use]
 pub fn quantisation(runs: &[RunStreams]) -> Option<Quantisation> {
-    let mut per_run: Vec<Quantisation> = runs
-        .iter()
-        .filter(|run| matches!(run.kind, RunKind::Roll | RunKind::RollActuation))
-        .filter_map(run_quantisation)
-        .collect();
+    let mut per_run: Vec<Quantisation> = rolling(runs).filter_map(run_quantisation).collect();
     if per_run.is_empty() {
         return None;
     }
@@ -56,6 +52,18 @@ pub fn quantisation(runs: &[RunStreams]) -> Option<Quantisation> {
     per_run.sort_by(|a, b| ratio(a).total_cmp(&ratio(b)));
     let median = per_run[per_run.len() / 2];
     (ratio(&median) >= MIN_QUANTUM_TO_MOTION).then_some(median)
+}
+
+/// The runs that roll the wing: only their angle says anything of the encoder.
+fn rolling(runs: &[RunStreams]) -> impl Iterator<Item = &RunStreams> {
+    runs.iter().filter(|run| matches!(run.kind, RunKind::Roll | RunKind::RollActuation))
+}
+
+/// The upper median of `values` (the middle one after sorting, the higher of the two middle
+/// ones for an even count); `None` without values. Reorders `values`.
+fn upper_median(values: &mut [f64]) -> Option<f64> {
+    values.sort_by(f64::total_cmp);
+    values.get(values.len() / 2).copied()
 }
 
 /// Below this a step of the recorded angle is the file's rounding of one value, not a step, deg.
@@ -74,11 +82,7 @@ fn run_quantisation(run: &RunStreams) -> Option<Quantisation> {
         .map(|pair| (pair[1] - pair[0]).abs())
         .filter(|step| step.is_finite() && *step > RESOLUTION_DEG)
         .collect();
-    if steps.is_empty() {
-        return None;
-    }
-    steps.sort_by(f64::total_cmp);
-    let quantum_deg = steps[steps.len() / 2];
+    let quantum_deg = upper_median(&mut steps)?;
     let coarse = ((COARSE_STEP_S * run.sample_hz).round() as usize).max(1);
     let (mut travel_deg, mut spanned) = (0.0, 0usize);
     for (a, b) in phi_deg.iter().step_by(coarse).zip(phi_deg.iter().skip(coarse).step_by(coarse)) {
@@ -136,22 +140,15 @@ pub struct Play {
 /// every rate-driven candidate fits the kinks it puts into the rate.
 #[must_use]
 pub fn play(runs: &[RunStreams]) -> Option<Play> {
-    let reversals: Vec<Reversal> = runs
-        .iter()
-        .filter(|run| matches!(run.kind, RunKind::Roll | RunKind::RollActuation))
-        .flat_map(run_reversals)
-        .collect();
+    let reversals: Vec<Reversal> = rolling(runs).flat_map(run_reversals).collect();
     if reversals.len() < MIN_REVERSALS {
         return None;
     }
-    let median = |values: &mut Vec<f64>| {
-        values.sort_by(f64::total_cmp);
-        values[values.len() / 2]
-    };
-    let exit_to_entry = median(&mut reversals.iter().map(|r| r.exit_rate / r.entry_rate).collect());
-    let release_share = median(&mut reversals.iter().map(|r| r.release_rate / r.exit_rate).collect());
-    let hold_s = median(&mut reversals.iter().map(|r| r.hold_s).collect());
-    let width_deg = median(&mut reversals.iter().map(|r| 0.5 * r.exit_rate * r.hold_s).collect());
+    let median = |of: &dyn Fn(&Reversal) -> f64| upper_median(&mut reversals.iter().map(of).collect::<Vec<_>>());
+    let exit_to_entry = median(&|r| r.exit_rate / r.entry_rate)?;
+    let release_share = median(&|r| r.release_rate / r.exit_rate)?;
+    let hold_s = median(&|r| r.hold_s)?;
+    let width_deg = median(&|r| 0.5 * r.exit_rate * r.hold_s)?;
     (exit_to_entry >= MIN_EXIT_TO_ENTRY && release_share >= MIN_RELEASE_SHARE).then_some(Play {
         exit_to_entry,
         release_share,
@@ -179,10 +176,9 @@ fn run_reversals(run: &RunStreams) -> Vec<Reversal> {
     let phi_deg = angle_deg(run);
     let window = ((RATE_WINDOW_S * run.sample_hz).round() as usize).max(1);
     let dt_s = 1.0 / run.sample_hz;
-    let moving: Vec<usize> = (1..phi_deg.len())
-        .filter(|&i| (phi_deg[i] - phi_deg[i - 1]).abs() > RESOLUTION_DEG && (phi_deg[i] - phi_deg[i - 1]).is_finite())
-        .collect();
     let step = |i: usize| phi_deg[i] - phi_deg[i - 1];
+    let moving: Vec<usize> =
+        (1..phi_deg.len()).filter(|&i| step(i).abs() > RESOLUTION_DEG && step(i).is_finite()).collect();
     moving
         .windows(2)
         .filter(|pair| step(pair[0]).signum() != step(pair[1]).signum())
