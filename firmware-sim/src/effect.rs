@@ -1,4 +1,4 @@
-//! The effect vocabulary (shared/spec/diagnosis.md, "Effect vocabulary"): one type for the
+//! The effect vocabulary (docs/spec/diagnosis.md, "Effect vocabulary"): one type for the
 //! effects the tunnel injects, the diagnosis names and the blind campaign scores, so that a
 //! name is spelled in one place.
 
@@ -40,7 +40,7 @@ pub enum Effect {
     CubicStiffness,
 }
 
-/// The block of the sim an effect belongs to (shared/spec/diagnosis.md).
+/// The block of the sim an effect belongs to (docs/spec/diagnosis.md).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Block {

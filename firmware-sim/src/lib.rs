@@ -9,7 +9,7 @@
 //! - [`tunnel`] (std): the physics, its effects and a stepping API for closed loops; [`effect`]
 //!   (std): the effect vocabulary the tunnel, the diagnosis and the validation share;
 //!   [`campaign`] (std): scenarios and the paper's campaign;
-//! - [`dataset`] (std): the on-disk format (`shared/spec/dataset-format.md`); [`atomic`] (std):
+//! - [`dataset`] (std): the on-disk format (`docs/spec/dataset-format.md`); [`atomic`] (std):
 //!   folders written completely or not at all;
 //! - [`sil`] (std): the estimator and controller in closed loop with the tunnel; [`fault`] (std):
 //!   sensor faults injected into the estimator's inputs, in SIL runs and replays;

@@ -1,7 +1,7 @@
 //! Host tools: fitting, code generation, replay, evaluation, SIL and QEMU runs, reports.
 //!
 //! The library holds everything the `host-tools` binary does, so that the integration tests
-//! call the same code the command line runs (`shared/spec/cli.md` is the command line's
+//! call the same code the command line runs (`docs/spec/cli.md` is the command line's
 //! contract). f64 throughout; the estimator itself (estimator-core, f32) is what replays,
 //! evaluations and the SIL harness run, so the numbers they report are the flying code's.
 //!

@@ -341,7 +341,7 @@ def evaluate(
 @dataclass(frozen=True)
 class Diagnosis:
     """What :func:`diagnose` wrote: ``results`` (``diagnosis.json``, the contract of
-    ``shared/spec/diagnosis.md``, as a dict), the report folder and its page."""
+    ``docs/spec/diagnosis.md``, as a dict), the report folder and its page."""
 
     results: Dict[str, Any]
     folder: Path

@@ -1,4 +1,4 @@
-//! `load_dataset`: a dataset folder (the contract of `shared/spec/dataset-format.md`) read by
+//! `load_dataset`: a dataset folder (the contract of `docs/spec/dataset-format.md`) read by
 //! firmware-sim's loader, its runs as NumPy arrays and its manifest as JSON for the Python side.
 
 use std::path::PathBuf;

@@ -1,4 +1,4 @@
-//! The dataset format (shared/spec/dataset-format.md): round trips through the writer and the
+//! The dataset format (docs/spec/dataset-format.md): round trips through the writer and the
 //! reader, every error class with the file and the row or key in its message, missing values,
 //! the `mx_nm` conversion, and atomic writes.
 //!

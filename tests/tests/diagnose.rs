@@ -1,4 +1,4 @@
-//! The sim-to-real gap diagnosis (shared/spec/diagnosis.md): the contract's JSON,
+//! The sim-to-real gap diagnosis (docs/spec/diagnosis.md): the contract's JSON,
 //! named effects on recordings with a known effect, nothing named on clean ones, and a small
 //! fixed slice of the blind campaign.
 

@@ -1,7 +1,7 @@
 //! The workspace's integration tests: one binary, one module per topic.
 #![allow(missing_docs)]
 
-// Reading and writing the dataset format (shared/spec/dataset-format.md): round trips and
+// Reading and writing the dataset format (docs/spec/dataset-format.md): round trips and
 // every error class.
 mod dataset;
 
@@ -32,3 +32,6 @@ mod diagnose;
 // Reliability: sensor faults in replays and the SIL loop, the fault study's goals, the loaders'
 // fuzzer, the soak, and folders that stay complete or absent when the writer is killed.
 mod reliability;
+
+// The tree on its own: the contracts in docs/spec/, no path outside the repository.
+mod docs;

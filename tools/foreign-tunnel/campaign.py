@@ -11,7 +11,7 @@ README
 
 A second synthetic wind tunnel, written apart from firmware-sim and the diagnosis from the
 physical definitions only (tunnel.py: the physics; effects.py: the effects, written from the
-contract's table "What each name covers" in shared/spec/diagnosis.md). It writes
+contract's table "What each name covers" in docs/spec/diagnosis.md). It writes
 
     DIR/campaign.json         {"format": "foreign-campaign/1", "seed", "clean": "clean",
                                "cases": [{"id", "data", "truth", "truth_sha256"}, ...]}

@@ -1,5 +1,5 @@
 """Effects injected by the foreign tunnel's blind campaigns (campaign.py), each in every form
-the contract (shared/spec/diagnosis.md, "What each name covers") lists, as noise-free
+the contract (docs/spec/diagnosis.md, "What each name covers") lists, as noise-free
 contributions added to a case's clean signals.
 
 Every effect class lists its form ids in `forms` and has `setup(rng, case, form)`, which

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """A second, independent wind tunnel that writes datasets in the contract format
-(shared/spec/dataset-format.md), to check that the tools generalise beyond
+(docs/spec/dataset-format.md), to check that the tools generalise beyond
 firmware-sim's tunnel.
 
 Nothing here is shared with firmware-sim: other equations (a second-order lift

@@ -1,7 +1,7 @@
 """Physics of the second, independent wind tunnel, shared by foreign_tunnel.py (single
 recordings) and campaign.py (blind diagnosis campaigns).
 
-Written from the physical definitions only (shared/spec, shared/research), apart from
+Written from the physical definitions only (docs/spec and the references it cites), apart from
 firmware-sim and the diagnosis. Everything here is noise-free except the explicit noise
 draws; the effects of effects.py are added as contributions on top of these signals.
 

@@ -1,7 +1,7 @@
 //! Developer tasks of this workspace, run as `cargo xtask TASK` (the alias in
 //! `.cargo/config.toml`; rust-analyzer's `xtask` layout): they check the code, not a user's
 //! data, so they are not in the user's `host-tools` (whose commands follow
-//! `shared/spec/cli.md`).
+//! `docs/spec/cli.md`).
 //!
 //! - `codegen [--check]`: the committed default model's const tables in estimator-core
 //!   (`host-tools codegen --model models/default`, the contract's command, does the same for any

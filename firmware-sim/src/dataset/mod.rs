@@ -1,5 +1,5 @@
 //! The on-disk dataset format of wind-tunnel recordings and synthetic runs
-//! (`shared/spec/dataset-format.md`): a `manifest.toml` and one CSV file per run.
+//! (`docs/spec/dataset-format.md`): a `manifest.toml` and one CSV file per run.
 //!
 //! Loading either succeeds completely or fails with a [`DatasetError`] that names the file, the
 //! row (1-based, header = row 1) or the key, and what was expected. Missing samples are `NaN` in

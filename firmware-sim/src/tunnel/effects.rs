@@ -1,5 +1,5 @@
 //! Effects the estimator's models lack, each switchable with its physical parameters: the
-//! vocabulary of `shared/spec/diagnosis.md` plus effects outside it (for blind validation).
+//! vocabulary of `docs/spec/diagnosis.md` plus effects outside it (for blind validation).
 //!
 //! An effect given without parameters takes a moderate default setting. The default tunnel has
 //! every effect off. The injection code lives here, apart from the diagnosis's candidate models,

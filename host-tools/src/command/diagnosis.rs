@@ -67,7 +67,7 @@ pub enum SignatureSource {
 /// What `diagnose` found and wrote.
 #[derive(Debug, Clone)]
 pub struct DiagnoseSummary {
-    /// The diagnosis (`diagnosis.json`, the contract of `shared/spec/diagnosis.md`).
+    /// The diagnosis (`diagnosis.json`, the contract of `docs/spec/diagnosis.md`).
     pub diagnosis: Diagnosis,
     /// Whose signature was used.
     pub signature: SignatureSource,

@@ -1,5 +1,5 @@
 //! Whether the recorded roll angle is quantised coarser than its own motion per sample: an
-//! encoder outside the diagnosis's vocabulary (shared/spec/diagnosis.md, "Outside the
+//! encoder outside the diagnosis's vocabulary (docs/spec/diagnosis.md, "Outside the
 //! vocabulary ... encoder backlash or quantisation": `unattributed`, with what its structure
 //! is; docs/diagnosis.md, A coarse encoder).
 //!
@@ -136,7 +136,7 @@ pub struct Play {
 
 /// A play in the encoder, if at the reversals of the rolling runs' recorded angle the reading
 /// leaves its hold at least `MIN_EXIT_TO_ENTRY` times faster than it entered it, already at
-/// `MIN_RELEASE_SHARE` of that rate as the hold ends (medians over the reversals). Encoder backlash is outside the vocabulary (shared/spec/diagnosis.md);
+/// `MIN_RELEASE_SHARE` of that rate as the hold ends (medians over the reversals). Encoder backlash is outside the vocabulary (docs/spec/diagnosis.md);
 /// every rate-driven candidate fits the kinks it puts into the rate.
 #[must_use]
 pub fn play(runs: &[RunStreams]) -> Option<Play> {

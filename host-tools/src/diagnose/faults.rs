@@ -1,5 +1,5 @@
 //! Where and how much a pressure-channel fault acts in each run (the `pressure_fault` family,
-//! shared/spec/diagnosis.md: "one channel stuck, dead (missing), biased, drifting, with a wrong
+//! docs/spec/diagnosis.md: "one channel stuck, dead (missing), biased, drifting, with a wrong
 //! gain, with extra noise, or spiking ..., from the start of a run or from any moment in it";
 //! docs/diagnosis.md, Pressure faults).
 //!
@@ -37,7 +37,7 @@ const STUCK_FLATNESS: f64 = 0.1;
 /// Largest ratio of the smoothed reading's variance over its interval to what the reading's own
 /// noise alone would leave after the same smoothing (its white variance from first differences,
 /// over the window's length). A stuck reading is a constant with its transducer's noise
-/// (shared/spec/diagnosis.md, pressure_fault), so the ratio is 1 for white noise and stays
+/// (docs/spec/diagnosis.md, pressure_fault), so the ratio is 1 for white noise and stays
 /// below 10 for noise correlated up to 0.6 from sample to sample (an AR(1) noise of
 /// correlation rho leaves (1 + rho) / (1 - rho)^2 times more). A live channel moves with the
 /// flow, tens of times above its smoothed noise: a channel that moves less than the filter
@@ -269,7 +269,7 @@ fn best_interval_over(
     let edge = |cell: usize| cell * m / GRID;
     let mut best: Option<((usize, usize), f64)> = None;
     // The contract's fault lasts from its onset (the run's start or any moment in it) to the
-    // run's end (shared/spec/diagnosis.md, pressure_fault): only intervals to the samples' end.
+    // run's end (docs/spec/diagnosis.md, pressure_fault): only intervals to the samples' end.
     for first in 0..GRID {
         for last in GRID - 1..GRID {
             let (a, b) = (edge(first), edge(last + 1));
@@ -440,7 +440,7 @@ pub fn stuck_slope_holds(fit: &regression::Fit) -> bool {
 
 /// A fault form whose size is one value of the channel, shared by every run, with an onset of
 /// its own in each run (or none: a run without the fault), lasting to the run's end. The
-/// contract's `pressure_fault` (shared/spec/diagnosis.md, What each name covers) is "one channel
+/// contract's `pressure_fault` (docs/spec/diagnosis.md, What each name covers) is "one channel
 /// ... biased, drifting, with a wrong gain ... from the start of a run or from any moment in
 /// it": the fault is the channel's (one offset, one rate, one gain), only when it begins is the
 /// run's. A level of its own in every run is the pressure model's error from run to run, not a
@@ -794,7 +794,7 @@ pub fn segments_judged(runs: &[RunStreams], tap: usize) -> Vec<Segment<'_>> {
 const DIFFERENCE_TAU: f64 = 1.5;
 
 /// Extra noise fitted on the training part: the channel's noise variance rises from an onset
-/// per run to the run's end, by one added variance for every run (shared/spec/diagnosis.md: a
+/// per run to the run's end, by one added variance for every run (docs/spec/diagnosis.md: a
 /// channel "with extra noise ... from the start of a run or from any moment in it").
 #[derive(Debug, Clone, PartialEq)]
 pub struct Noise {

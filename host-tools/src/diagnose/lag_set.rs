@@ -1,5 +1,5 @@
 //! Which pressure channels a lag concerns, and each one's time constant (docs/diagnosis.md,
-//! Pressure lag; shared/spec/diagnosis.md: a lag "of any non-empty set of pressure channels,
+//! Pressure lag; docs/spec/diagnosis.md: a lag "of any non-empty set of pressure channels,
 //! from one to all twelve, ... the same for every lagged channel or different per channel").
 //!
 //! Each channel is judged on what the other channels expect of it, the others read through

@@ -1,4 +1,4 @@
-//! Sim-to-real gap diagnosis (shared/spec/diagnosis.md): where the recording departs from the
+//! Sim-to-real gap diagnosis (docs/spec/diagnosis.md): where the recording departs from the
 //! sim, which unmodelled effect causes it, and how far the gap shrinks on held-out data once
 //! that effect is added.
 //!
@@ -74,7 +74,7 @@ pub const MIN_REMAINDER_TO_NOISE: f64 = 0.05;
 /// Largest gap the named balance effects may leave on the runs they act on, as a ratio of its
 /// RMS to the noise RMS (beyond the sim's own gap there), before the gap counts as
 /// unattributed. The contract lets an effect whose effect-to-noise ratio is below one be
-/// missed, and no more (shared/spec/diagnosis.md, "The verdict `none`"): a gap of at least
+/// missed, and no more (docs/spec/diagnosis.md, "The verdict `none`"): a gap of at least
 /// the noise RMS that the named effects leave is a real gap that they do not explain, and
 /// "unattributed" is for a real gap "no candidate explains" (the same contract, the
 /// three questions). An effect in a form its family spans leaves its noise; one that leaves
@@ -346,7 +346,7 @@ pub fn diagnose(
 }
 
 impl Diagnosis {
-    /// Every number the contract requires is finite (shared/spec/diagnosis.md).
+    /// Every number the contract requires is finite (docs/spec/diagnosis.md).
     fn check_finite(&self) -> Result<(), DiagnoseError> {
         let mut figures =
             vec![("gap.heldout_rms".to_owned(), self.gap.heldout_rms), ("gap.noise_rms".into(), self.gap.noise_rms)];

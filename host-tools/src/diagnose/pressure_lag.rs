@@ -1,6 +1,6 @@
 //! The `pressure_lag` family: a first-order lag of the pressure channels (tubing, transducer),
 //! on every channel, on a group of them or on one, each with its own or a shared time constant
-//! (docs/diagnosis.md, Pressure lag; shared/spec/diagnosis.md).
+//! (docs/diagnosis.md, Pressure lag; docs/spec/diagnosis.md).
 //!
 //! Why the balance is the reference: a lagged channel reads `y` with `tau y' + y = p`, the
 //! true pressure `p`; the pressure filter's one-step innovations hide such a lag, because the
@@ -29,7 +29,7 @@ use super::streams::RunStreams;
 
 /// Shortest and longest time constant searched for a lag beyond the sim's own alignment, s:
 /// from a lead well below any alignment the sim can have to beyond the contract's longest lag
-/// (half a second, shared/spec/diagnosis.md, What each name covers). A best fit at either end
+/// (half a second, docs/spec/diagnosis.md, What each name covers). A best fit at either end
 /// is no lag: the profile then has no minimum inside, and the end only says where the search
 /// stopped.
 pub const TAU_RANGE_S: (f64, f64) = (-0.2, 0.6);
@@ -482,7 +482,7 @@ pub fn finding(runs: &[RunStreams], reference: impl Into<Reference>) -> Option<S
 }
 
 /// The least lag of a channel in a set, s: half the contract's shortest lag (5 ms,
-/// shared/spec/diagnosis.md, What each name covers), the midpoint between no lag and the
+/// docs/spec/diagnosis.md, What each name covers), the midpoint between no lag and the
 /// shortest one. Below it a channel's apparent lag is the pressure model's error, which moves a
 /// channel's relative lag by a millisecond or two from recording to recording.
 pub const MIN_CHANNEL_LAG_S: f64 = 2.5e-3;

@@ -1,4 +1,4 @@
-//! The machine-readable result, `diagnosis.json` (shared/spec/diagnosis.md, "Machine-readable
+//! The machine-readable result, `diagnosis.json` (docs/spec/diagnosis.md, "Machine-readable
 //! result"), and the canonical correlation that tells which candidates this data cannot separate.
 
 use std::collections::BTreeMap;
@@ -298,7 +298,7 @@ mod tests {
         assert!((value - expected).abs() <= 1e-12 * expected.abs().max(1.0), "{value} != {expected}");
     }
 
-    /// The contract's example (shared/spec/diagnosis.md) as a typed result.
+    /// The contract's example (docs/spec/diagnosis.md) as a typed result.
     fn example() -> Diagnosis {
         Diagnosis {
             verdict: Verdict::Effect,

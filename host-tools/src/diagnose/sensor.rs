@@ -20,7 +20,7 @@ const SPIKE_SIGMA: f64 = 6.0;
 const STAND_OUT: f64 = 4.0;
 
 /// Longest burst that still counts as a spike, samples: the contract's spikes are "single
-/// samples or bursts" (shared/spec/diagnosis.md, pressure_fault); the tunnels' bursts last up to
+/// samples or bursts" (docs/spec/diagnosis.md, pressure_fault); the tunnels' bursts last up to
 /// 40 samples (docs/diagnosis.md, Pressure faults). A longer excursion is a step, a lag or the
 /// flow, not a spike.
 const SPIKE_MAX_BURST: usize = 40;
@@ -521,7 +521,7 @@ pub fn delta_bic(fit: &regression::Fit, autocorrelation_time: f64, k: usize) -> 
     n_eff * (fit.ssr_base / fit.ssr).ln() - k as f64 * n_eff.ln()
 }
 
-/// The fault candidate of one channel (shared/spec/diagnosis.md, pressure_fault: "stuck, dead
+/// The fault candidate of one channel (docs/spec/diagnosis.md, pressure_fault: "stuck, dead
 /// (missing), biased, drifting, with a wrong gain, with extra noise, or spiking"): dead when
 /// missing where the others read; otherwise the form with the most evidence (delta BIC) among
 /// stuck, spike, bias, drift, gain and noise. Bias, drift and gain have one parameter for every

@@ -4,7 +4,7 @@
 //! The balance stream is `C_l,measured - (C_l,eGK + C_l,AFC + coupling)` with every block run by
 //! estimator-core exactly as it flies, but with the pressure channels withheld: the sim is the
 //! model of the experiment, so the disturbance comes from the eGK ODE and nothing is corrected
-//! by the taps (shared/spec/diagnosis.md, "Sim"). The sensor stream is the one-step innovation
+//! by the taps (docs/spec/diagnosis.md, "Sim"). The sensor stream is the one-step innovation
 //! of each pressure channel under the pressure model's steady-state Kalman filter
 //! (docs/diagnosis.md, Pressure innovations per channel), recomputed in f64 with an innovation gate
 //! so that one bad channel does not leak into the others.

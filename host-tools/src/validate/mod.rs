@@ -116,7 +116,7 @@ pub struct CaseRecord {
     pub truth_channels: Vec<String>,
     /// The injected channels that the diagnosis must name: those whose own effect-to-noise
     /// ratio is at least one, where the truth gives a ratio per channel, else all of them. The
-    /// contract lets an effect below a ratio of one be missed (shared/spec/diagnosis.md, "The
+    /// contract lets an effect below a ratio of one be missed (docs/spec/diagnosis.md, "The
     /// verdict `none`"); a lag of ten channels with 5 ms on one of them may leave that one at
     /// the noise floor.
     pub required_channels: Vec<String>,

@@ -1,4 +1,4 @@
-//! The command line: its subcommands (`shared/spec/cli.md`). Each subcommand's flags are the
+//! The command line: its subcommands (`docs/spec/cli.md`). Each subcommand's flags are the
 //! `clap` struct its library function takes ([`host_tools::command`]).
 
 use clap::{Parser, Subcommand};

@@ -1,5 +1,5 @@
 //! The `host-tools` command line: one binary whose subcommands follow the user's workflow
-//! (`shared/spec/cli.md`). It parses ([`flags`]) and dispatches to the library's commands
+//! (`docs/spec/cli.md`). It parses ([`flags`]) and dispatches to the library's commands
 //! ([`host_tools::command`]), which return typed summaries; it prints them.
 
 mod flags;

@@ -56,7 +56,7 @@ pub trait BalanceCandidate: Sync + fmt::Debug {
     }
 
     /// Whether the effect keeps the static gain of the sim's path it acts on: a transport delay
-    /// and a low-pass "of unit static gain" (shared/spec/diagnosis.md, What each name covers).
+    /// and a low-pass "of unit static gain" (docs/spec/diagnosis.md, What each name covers).
     /// Its columns are then the path with the effect less the path without, and their gains
     /// are about one ([`UNIT_GAIN_RANGE`]).
     fn unit_gain(&self) -> bool {
@@ -84,7 +84,7 @@ pub trait BalanceCandidate: Sync + fmt::Debug {
     /// coefficients.
     fn params(&self, shape: &Shape, beta: &[f64], context: &Context<'_>, columns: &[Vec<Vec<f64>>]) -> Params;
 
-    /// The effect's name (the vocabulary of shared/spec/diagnosis.md; `recalibration` for G0).
+    /// The effect's name (the vocabulary of docs/spec/diagnosis.md; `recalibration` for G0).
     fn name(&self) -> &'static str {
         self.effect().map_or("recalibration", Effect::name)
     }
