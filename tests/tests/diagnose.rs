@@ -182,7 +182,26 @@ fn blind_campaign_slice_runs_and_scores() {
     assert_eq!(records.len(), 3);
     for record in &records {
         assert_eq!(record.truth_sha256, score::sha256_hex(record.truth.as_bytes()));
-        assert_eq!(record.correct, score::is_correct(record));
+        // The scorer's verdict against the contract's, worked out here from the sealed truth
+        // alone: the class is the one effect the truth holds (none for a clean case); a clean
+        // case is right only as `none`, an effect only when named first, a sensor effect only
+        // on its own channel.
+        let held: Vec<&str> = ["inertial_tare", "pressure_fault"]
+            .into_iter()
+            .filter(|name| record.truth.contains(&format!("{name}: Some")))
+            .collect();
+        let expected = match record.class.as_str() {
+            "none" => {
+                assert!(held.is_empty(), "{}", record.truth);
+                record.verdict == "none" && record.named.is_empty()
+            }
+            class => {
+                assert_eq!(held, [class], "{}", record.truth);
+                let first = record.named.first().is_some_and(|name| name == class);
+                first && (class != "pressure_fault" || record.named_channels == record.truth_channels)
+            }
+        };
+        assert_eq!(record.correct, expected, "{record:#?}");
     }
     let summary = score::summarise(&records);
     assert_eq!(summary.cases, 3);

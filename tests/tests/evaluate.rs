@@ -65,16 +65,22 @@ fn evaluation_report_is_complete_on_the_three_kinds() {
     assert_eq!(evaluation.blocks.len(), 12, "six blocks at two angles of attack");
     for row in &evaluation.coupling {
         assert!(row.ratio.is_finite() && row.ratio > 0.0 && row.corr_linear.is_finite(), "{row:?}");
-        // Every comparison carries its bootstrap interval, ordered and around a finite value.
+        // Every comparison carries its bootstrap interval, and the interval holds the estimate
+        // it is drawn around (an interval resampled from other samples, or of another
+        // statistic, need not).
         let [low, high] = row.ratio_ci95.expect("ratio interval");
-        assert!(low.is_finite() && low <= high && row.bootstrap_block >= 1, "{row:?}");
+        assert!(low.is_finite() && row.bootstrap_block >= 1, "{row:?}");
+        assert!(low <= row.ratio && row.ratio <= high, "ratio outside its interval: {row:?}");
         let [low, high] = row.corr_change_ci95.expect("correlation-change interval");
-        assert!(low.is_finite() && low <= high, "{row:?}");
+        let change = row.corr_operator - row.corr_linear;
+        assert!(low.is_finite() && low <= change && change <= high, "change outside its interval: {row:?}");
     }
     assert_eq!(evaluation.fusion.len(), 2, "the fusion against its sources at both angles");
     for row in &evaluation.fusion {
         let [low, high] = row.over_egk_ci95.expect("interval against the eGK");
-        assert!(low <= high && row.over_pressure_ci95.is_some() && row.over_egk > 0.0, "{row:?}");
+        assert!(low <= row.over_egk && row.over_egk <= high && row.over_egk > 0.0, "{row:?}");
+        let [low, high] = row.over_pressure_ci95.expect("interval against the pressure path");
+        assert!(low <= row.over_pressure && row.over_pressure <= high, "{row:?}");
         // The Kalman fusion weighs its sources by their noise: not worse than the better one by
         // more than 2 %, and better than the worse one.
         assert!(row.over_egk < 1.02 && row.over_pressure < 1.0, "{row:?}");

@@ -227,16 +227,18 @@ fn kinds_at_one_alpha_share_their_inputs() {
 }
 
 /// The paper's Table 1 on the default campaign: sigma(Delta C_l) / mean(C_l,RollAFC) rises with
-/// alpha and lies within a factor 1.5 of 11 %, 15 % and 30 %.
+/// alpha and lies within 20 % of 11 %, 15 % and 30 % (measured 12.6, 13.8 and 28.1 %,
+/// docs/results.md): the tunnel's interaction is calibrated to the paper's, and a change that
+/// moves it by a fifth is a change of the experiment.
 #[test]
-fn default_campaign_reproduces_table_1_within_a_factor_of_1_5() {
+fn default_campaign_reproduces_table_1_within_20_percent() {
     let dataset = simulate(&Scenario::default());
     let rows = superposition_table(&dataset).expect("the default campaign has the three kinds");
     let paper = [0.11, 0.15, 0.30];
     assert_eq!(rows.len(), 3);
     for (row, target) in rows.iter().zip(paper) {
         assert!(
-            row.ratio_to_mean > target / 1.5 && row.ratio_to_mean < target * 1.5,
+            (row.ratio_to_mean / target - 1.0).abs() <= 0.2,
             "alpha {}: {:.3} vs paper {target}",
             row.alpha_deg,
             row.ratio_to_mean
