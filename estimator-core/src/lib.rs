@@ -43,7 +43,8 @@
 //!
 //! No allocation, no panic (also on NaN, infinity or huge input: a missing value is held and
 //! flagged), O(1) per step, sizes fixed at compile time, the estimator can live in a `static`
-//! ([`Estimator::new`] is `const`), f32 throughout.
+//! ([`Estimator::new`] is `const`). The flying [`Estimator`] is f32; its stages are generic over
+//! the scalar ([`real::Real`]), so that the host tools run the same equations in f64.
 //!
 //! # Features
 //!

@@ -17,11 +17,11 @@
 //!   sample records the QEMU replay exchanges through semihosting; [`link`] (no_std): the serial
 //!   protocol of the real-time loop; [`drivers`] (no_std): the I/O traits bound to embedded-hal
 //!   SPI and PWM;
-//! - `src/bin/firmware.rs` (feature `target`): the STM32F405 firmware.
+//! - `src/bin/firmware/main.rs` (feature `target`): the STM32F405 firmware.
 #![cfg_attr(not(feature = "std"), no_std)]
 #![deny(missing_docs)]
 // The workspace forbids unsafe code; this package only denies it so that the firmware binary
-// (src/bin/firmware.rs) can allow it locally. The library keeps the workspace's rule.
+// (src/bin/firmware/main.rs) can allow it locally. The library keeps the workspace's rule.
 #![forbid(unsafe_code)]
 
 #[cfg(feature = "std")]

@@ -52,7 +52,7 @@ pub struct QemuReplayArgs {
     /// Dataset folder (or its manifest.toml).
     #[arg(long)]
     pub data: PathBuf,
-    /// The run: its file as written in the manifest (e.g. runs/roll_actuation_a20.csv).
+    /// The run: its file as written in the manifest (e.g. runs/rollact_a20.csv).
     #[arg(long)]
     pub run: PathBuf,
     /// Replay only the first N samples.

@@ -21,7 +21,10 @@ fn main() -> ExitCode {
     }
 }
 
-/// Runs one command: the summary goes to stdout, timing and warnings to stderr.
+/// Runs one command. The commands that answer a question (`superposition`, `fit`, `evaluate`,
+/// `sil`, `qemu-replay`, `hil`, `diagnose`, `validate-diagnosis`, `faults`) print their summary
+/// on stdout; the ones that only write files (`simulate`, `codegen`, `replay`) say what they
+/// wrote on stderr, as timing, notes and warnings go there for all.
 fn run(command: Command) -> anyhow::Result<()> {
     let progress = Terminal::new();
     match command {
