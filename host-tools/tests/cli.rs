@@ -75,3 +75,49 @@ fn a_missing_dataset_is_refused_naming_its_path() {
     assert!(stderr.contains("no-such-campaign") && stderr.contains("manifest"), "{stderr}");
     assert!(!dir.path().join("model").exists(), "nothing is written");
 }
+
+/// Every `host-tools` command the README, the usage guide and the command line's contract
+/// show, with the flags they show it with: the subcommand exists and its `--help` lists each
+/// flag (a renamed flag or subcommand would leave the documents telling users a command that
+/// fails).
+#[test]
+fn every_command_the_documents_show_exists_with_the_flags_they_show() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("host-tools sits in the workspace");
+    let mut shown: std::collections::BTreeMap<String, std::collections::BTreeSet<String>> = Default::default();
+    for doc in ["README.md", "docs/usage.md", "docs/spec/cli.md"] {
+        let text = std::fs::read_to_string(root.join(doc)).unwrap_or_else(|e| panic!("{doc}: {e}"));
+        for line in text.lines() {
+            for (idx, _) in line.match_indices("host-tools ") {
+                // The command runs to the end of its code span or of the line.
+                let rest = &line[idx + "host-tools ".len()..];
+                let rest = rest.split(['`', '|']).next().unwrap_or_default();
+                let mut words = rest.split_whitespace();
+                let Some(sub) = words.next().map(|w| w.trim_end_matches(|c: char| !c.is_ascii_alphanumeric())) else {
+                    continue;
+                };
+                if sub.is_empty() || !sub.chars().all(|c| c.is_ascii_lowercase() || c == '-') {
+                    continue;
+                }
+                let flags = shown.entry(sub.to_owned()).or_default();
+                for word in words {
+                    let flag = word.trim_start_matches('[');
+                    if let Some(name) = flag.strip_prefix("--") {
+                        let name: String =
+                            name.chars().take_while(|c| c.is_ascii_alphanumeric() || *c == '-').collect();
+                        flags.insert(format!("--{name}"));
+                    }
+                }
+            }
+        }
+    }
+    assert!(shown.len() >= 10, "the documents show too few commands: {shown:?}");
+    for (sub, flags) in &shown {
+        let help = succeeded(&host_tools(&[sub, "--help"]), &format!("host-tools {sub} --help"));
+        for flag in flags {
+            assert!(
+                help.contains(flag.as_str()),
+                "host-tools {sub}: the documents show {flag}, its help has no such flag"
+            );
+        }
+    }
+}
