@@ -21,10 +21,9 @@ fn main() -> ExitCode {
     }
 }
 
-/// Runs one command. The commands that answer a question (`superposition`, `fit`, `evaluate`,
-/// `sil`, `qemu-replay`, `hil`, `diagnose`, `validate-diagnosis`, `faults`) print their summary
-/// on stdout; the ones that only write files (`simulate`, `codegen`, `replay`) say what they
-/// wrote on stderr, as timing, notes and warnings go there for all.
+/// Runs one command. A command that answers a question prints its summary on stdout; one that
+/// only writes files (`simulate`, `codegen`, `replay`) says what it wrote on stderr, where
+/// timing, notes and warnings go for all.
 fn run(command: Command) -> anyhow::Result<()> {
     let progress = Terminal::new();
     match command {
