@@ -40,7 +40,9 @@ fmt() { cargo fmt --all -- --check; }
 
 clippy() { cargo clippy --workspace --all-targets -- -D warnings; }
 
-test() { cargo test --workspace; }
+# Both tiers: plain `cargo test` runs the fast one; the slow tier (QEMU, the soak, full
+# campaigns and diagnoses) is `#[ignore = "slow tier ..."]` and runs here.
+test() { cargo test --workspace -- --include-ignored; }
 
 doc() { RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps; }
 

@@ -19,6 +19,7 @@ fn path(dir: &Path, name: &str) -> PathBuf {
 }
 
 #[test]
+#[ignore = "slow tier: ./ci.sh test runs it"]
 fn every_data_and_model_command_returns_its_numbers() {
     let dir = tempfile::tempdir().expect("a temporary folder");
     let (data, model) = (path(dir.path(), "data"), path(dir.path(), "model"));

@@ -59,6 +59,7 @@ fn assert_contract_numbers(value: &serde_json::Value, path: &str) {
 
 /// A recording without any effect: nothing is named.
 #[test]
+#[ignore = "slow tier: ./ci.sh test runs it"]
 fn clean_recording_names_no_effect() {
     let diagnosis = run(&record(Effects::default()));
     assert!(diagnosis.effects.is_empty(), "{:?}", diagnosis.effects);
@@ -68,6 +69,7 @@ fn clean_recording_names_no_effect() {
 /// An untared inertial reaction at a few times the balance noise: named first, with its
 /// inertia, and the held-out gap shrinks; the JSON has the contract's fields, all finite.
 #[test]
+#[ignore = "slow tier: ./ci.sh test runs it"]
 fn inertial_tare_is_named_with_its_inertia_and_the_gap_shrinks() {
     let ixx_kgm2 = 4e-5;
     let effects = Effects { inertial_tare: Some(InertialTare { ixx_kgm2 }), ..Effects::default() };
@@ -114,6 +116,7 @@ fn added_ratio(added: &[Vec<f64>], noise: f64) -> f64 {
 /// and sign per run), one of the contract's forms of `bias_drift`, written here apart from the
 /// family: named `bias_drift`.
 #[test]
+#[ignore = "slow tier: ./ci.sh test runs it"]
 fn exponentially_settling_zero_is_named_bias_drift() {
     let mut dataset = record(Effects::default());
     let noise = balance_noise(&dataset);
@@ -138,6 +141,7 @@ fn exponentially_settling_zero_is_named_bias_drift() {
 
 /// A dead pressure channel: `pressure_fault` in the sensor block, naming the channel.
 #[test]
+#[ignore = "slow tier: ./ci.sh test runs it"]
 fn dead_pressure_channel_is_named_with_its_channel() {
     let fault = PressureFault { channel: 5, mode: FaultMode::Dead, value: 0.0, spike_rate_hz: 0.0, start_s: 6.0 };
     let diagnosis = run(&record(Effects { pressure_fault: Some(fault), ..Effects::default() }));
@@ -152,6 +156,7 @@ fn dead_pressure_channel_is_named_with_its_channel() {
 /// at 9 s from one at 10 s: the fault's interval is taken from the samples that chose it, not
 /// from the scan's grid.
 #[test]
+#[ignore = "slow tier: ./ci.sh test runs it"]
 fn channel_stuck_from_mid_run_is_named_with_its_channel() {
     let fault = PressureFault { channel: 5, mode: FaultMode::Stuck, value: 0.0, spike_rate_hz: 0.0, start_s: 10.0 };
     let mut scenario = Scenario { duration_s: 30.0, ..scenario(77) };
@@ -168,6 +173,7 @@ fn channel_stuck_from_mid_run_is_named_with_its_channel() {
 /// A small fixed slice of the blind campaign: the truth is sealed, the scorer reads it after
 /// the diagnosis, no effect is named on the clean case, and the summary counts every case.
 #[test]
+#[ignore = "slow tier: ./ci.sh test runs it"]
 fn blind_campaign_slice_runs_and_scores() {
     let config = CampaignConfig {
         cases: 3,
@@ -237,6 +243,7 @@ fn diagnose_against_built_in(scenario: &Scenario) -> host_tools::diagnose::resul
 /// `pressure_lag` is named with all twelve channels and a time constant within 20 %. The
 /// filter's innovations alone cannot see such a lag (the filter follows the lagged readings).
 #[test]
+#[ignore = "slow tier: ./ci.sh test runs it"]
 fn lag_of_every_pressure_channel_is_named_with_all_channels_and_its_time_constant() {
     let tau_s = 0.05;
     let mut scenario = Scenario::default();
@@ -260,6 +267,7 @@ fn lag_of_every_pressure_channel_is_named_with_all_channels_and_its_time_constan
 /// (measured 43 ms each, judged without the group; 43, 28.5 and 43 ms on what the filter
 /// without each channel alone expects, which still carries the other two's lag).
 #[test]
+#[ignore = "slow tier: ./ci.sh test runs it"]
 fn lag_of_three_pressure_channels_is_named_with_those_channels() {
     assert_group_lag_named(5, 0.04, &[2, 6, 10], 0.4, 0.5);
 }
@@ -290,6 +298,7 @@ fn assert_group_lag_named(seed: u64, tau_s: f64, channels: &[usize], tolerance: 
 /// trades part of the lag that the filter's expectation still carries for a longer time
 /// constant at a smaller gain).
 #[test]
+#[ignore = "slow tier: ./ci.sh test runs it"]
 fn lag_of_five_pressure_channels_is_named_with_all_five() {
     assert_group_lag_named(6, 0.03, &[2, 4, 5, 8, 11], 0.5, 0.2);
 }

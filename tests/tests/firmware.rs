@@ -1,7 +1,8 @@
 //! The firmware built for the STM32F405 and run in QEMU (netduinoplus2): the file replay and
 //! the real-time loop over the serial link (hardware in the loop); every output must equal the
 //! host's bit for bit, and the step's instruction maximum must stay within its budget. Needs
-//! `qemu-system-arm` (`./ci.sh setup` installs it): without it the tests fail, never skip.
+//! `qemu-system-arm` (`./ci.sh setup` installs it): without it the tests fail, never skip. They
+//! are the slow tier's (`./ci.sh test`; `cargo test -p tests -- --ignored firmware::`).
 
 use std::time::Duration;
 
@@ -49,6 +50,7 @@ fn assert_bit_identical(replay: &qemu::QemuReplay, steps: usize) {
 /// model's blob loaded at run time; a blob with a flipped bit makes it exit with
 /// ROLLEST_STATUS_BLOB_CRC_MISMATCH (16), the documented code.
 #[test]
+#[ignore = "slow tier (QEMU): ./ci.sh test runs it"]
 fn the_c_example_flies_like_the_host_and_refuses_a_flipped_blob() {
     assert_qemu();
     let run = &short_run();
@@ -74,6 +76,7 @@ fn the_c_example_flies_like_the_host_and_refuses_a_flipped_blob() {
 }
 
 #[test]
+#[ignore = "slow tier (QEMU): ./ci.sh test runs it"]
 fn firmware_in_qemu_matches_the_host_replay() {
     assert_qemu();
     let run = &short_run();
@@ -115,6 +118,7 @@ fn assert_flies_like_the_host(result: &hil::HilRun, budget: f64) {
 }
 
 #[test]
+#[ignore = "slow tier (QEMU): ./ci.sh test runs it"]
 fn the_real_time_loop_over_the_serial_link_flies_like_the_host() {
     assert_qemu();
     let run = short_run();
@@ -127,6 +131,7 @@ fn the_real_time_loop_over_the_serial_link_flies_like_the_host() {
 }
 
 #[test]
+#[ignore = "slow tier (QEMU): ./ci.sh test runs it"]
 fn a_blob_sent_over_the_link_flies_and_a_corrupted_one_is_refused() {
     assert_qemu();
     let run = short_run();

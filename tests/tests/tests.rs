@@ -1,5 +1,13 @@
 //! The workspace's integration tests: one binary, one module per topic.
+//!
+//! Two tiers. Plain `cargo test` runs the fast one, a few minutes on a laptop. The slow tier
+//! (QEMU, the soak, full campaigns and full diagnoses) is marked `#[ignore = "slow tier ..."]`
+//! and runs from `./ci.sh test` (`cargo test -- --include-ignored`); run one slow test with
+//! `cargo test -p tests -- --ignored NAME`.
 #![allow(missing_docs)]
+
+// Data several topics share, made once per binary: the default campaign.
+mod fixture;
 
 // Reading and writing the dataset format (docs/spec/dataset-format.md): round trips and
 // every error class.
