@@ -84,6 +84,8 @@ jobs=("$@")
 [ ${#jobs[@]} -gt 0 ] || jobs=(setup fmt clippy test doc nostd python foreign)
 for job in "${jobs[@]}"; do
     echo "== ci: $job"
+    started=$SECONDS
     "$job"
+    echo "== ci: $job took $((SECONDS - started)) s"
 done
-echo "== ci: all jobs passed"
+echo "== ci: all jobs passed in $SECONDS s"
