@@ -91,7 +91,7 @@ pub fn render(set: &CoefficientSet, provenance: &str) -> Result<String, CodegenE
          /// The default coefficient set compiled into the estimator: {provenance}\n\
          pub const DEFAULT: CoefficientSet = {set:#?};\n{functions}",
         blob.len(),
-        crate::validate::score::sha256_hex(&blob),
+        crate::digest::sha256_hex(&blob),
         set.schema_version,
         terms.join(", ")
     );

@@ -21,6 +21,7 @@ pub mod analysis;
 pub mod codegen;
 pub mod command;
 pub mod diagnose;
+pub mod digest;
 pub mod evaluate;
 pub mod fit;
 pub mod hil;

@@ -187,7 +187,7 @@ fn blind_campaign_slice_runs_and_scores() {
     let records = run_campaign(&config, &|| {});
     assert_eq!(records.len(), 3);
     for record in &records {
-        assert_eq!(record.truth_sha256, score::sha256_hex(record.truth.as_bytes()));
+        assert_eq!(record.truth_sha256, host_tools::digest::sha256_hex(record.truth.as_bytes()));
         // The scorer's verdict against the contract's, worked out here from the sealed truth
         // alone: the class is the one effect the truth holds (none for a clean case); a clean
         // case is right only as `none`, an effect only when named first, a sensor effect only

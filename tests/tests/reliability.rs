@@ -210,7 +210,7 @@ fn write_model_and_report(root: &Path, forever: bool) {
     let json = serde_json::to_value(&evaluation).unwrap();
     let mut round = 0u64;
     loop {
-        host_tools::fit::card::write_model_folder(&root.join("model"), &outcome, "kill test", None)
+        host_tools::fit::card::write_model_folder(&root.join("model"), &outcome, "kill test", &[])
             .expect("writes the model");
         host_tools::report::write_report(&root.join("report"), &report, "evaluation.json", &json).expect("writes");
         if !forever {

@@ -134,7 +134,8 @@ pub fn fit(args: &FitArgs, progress: &dyn Progress) -> Result<FitSummary, Comman
     progress.stage("writing the model folder", None);
     let described = format!("{} (seed {})", args.data.display(), args.seed);
     let outcome = FitOutcome { set, report };
-    crate::fit::card::write_model_folder(&args.out, &outcome, &described, Some(&signature))?;
+    let signature = (crate::diagnose::SIGNATURE_FILE, serde_json::to_vec_pretty(&signature).unwrap_or_default());
+    crate::fit::card::write_model_folder(&args.out, &outcome, &described, &[signature])?;
     let FitOutcome { set, report } = outcome;
     Ok(FitSummary { out: args.out.clone(), set, report, elapsed_s: started.elapsed().as_secs_f64() })
 }

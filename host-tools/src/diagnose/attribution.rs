@@ -7,8 +7,8 @@
 use rayon::prelude::*;
 
 use super::candidates::{self, Candidate, Context, Form};
+use super::regression::delta_bic;
 use super::regression::{self, Fit, HeldoutGap, Interleave, Segment};
-use super::sensor::delta_bic;
 use super::streams::RunStreams;
 
 /// A candidate profiled over its grid.

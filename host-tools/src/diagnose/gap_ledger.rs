@@ -5,8 +5,8 @@
 
 use serde::Serialize;
 
+use super::finding::channel_name;
 use super::ledger::{self, BandShare, ChannelInnovation, CrossCorrelation, RegimeShare, Whiteness};
-use super::sensor::channel_name;
 use super::streams::RunStreams;
 
 /// Band edges of the ledger's spectrum, Hz.

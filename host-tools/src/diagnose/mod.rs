@@ -21,6 +21,7 @@ pub mod candidates;
 mod decision;
 pub mod encoder;
 pub mod faults;
+pub mod finding;
 pub mod gap_ledger;
 pub mod lag_set;
 pub mod ledger;
@@ -44,8 +45,8 @@ use crate::fit::split::Split;
 use attribution::Profiled;
 use candidates::Context;
 use decision::*;
+use finding::{ParamValue, SensorFinding};
 use result::{Confounding, Diagnosis, EffectResult, Gap, Unexplained, Verdict, Where, finite_or_null};
-use sensor::{ParamValue, SensorFinding};
 use signature::kind_alpha_key;
 pub use signature::{
     DEFAULT_SIGNATURE_JSON, SIGNATURE_FILE, Signature, SignatureFileError, default_signature, signature,

@@ -431,6 +431,19 @@ pub fn mean_square_standard_error(segment: &Segment<'_>) -> f64 {
     mean_square * (2.0 * tau / n as f64).sqrt()
 }
 
+/// Evidence of a fit with `k` parameters over its base, in the Bayesian information criterion
+/// (Schwarz, Ann. Stat. 6, 1978) on the effective sample size of a coloured residual:
+/// `N_eff ln(SSR_0 / SSR) - k ln N_eff` with `N_eff = N / tau`, `tau` the residual's
+/// autocorrelation time in samples.
+#[must_use]
+pub fn delta_bic(fit: &Fit, autocorrelation_time: f64, k: usize) -> f64 {
+    let n_eff = fit.n as f64 / autocorrelation_time.max(1.0);
+    if fit.ssr <= 0.0 || fit.ssr_base <= 0.0 || n_eff < 2.0 {
+        return 0.0;
+    }
+    n_eff * (fit.ssr_base / fit.ssr).ln() - k as f64 * n_eff.ln()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -7,8 +7,8 @@ use nalgebra::DMatrix;
 use serde::Serialize;
 
 use super::attribution::Profiled;
+use super::finding::{ParamValue, SensorFinding};
 use super::regression::Segment;
-use super::sensor::{ParamValue, SensorFinding};
 
 /// The verdict.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]

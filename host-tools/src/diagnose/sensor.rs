@@ -6,7 +6,8 @@
 use firmware_sim::effect::Effect;
 
 use super::faults;
-use super::regression::{self, Segment};
+use super::finding::{ParamValue, SensorFinding, channel_name, strength};
+use super::regression::{self, Segment, delta_bic};
 use super::streams::RunStreams;
 
 /// Shortest run of identical raw readings that counts as a stuck channel, s: a live transducer
@@ -29,46 +30,6 @@ const SPIKE_MAX_BURST: usize = 40;
 /// neighbours must be within it, and a burst is the stretch of samples beyond it around a
 /// sample beyond [`SPIKE_SIGMA`] (a burst's samples need not all be that large).
 const ORDINARY_SIGMA: f64 = 3.0;
-
-/// A sensor finding with its strength.
-#[derive(Debug, Clone, PartialEq)]
-pub struct SensorFinding {
-    /// [`Effect::PressureLag`] or [`Effect::PressureFault`].
-    pub effect: Effect,
-    /// Physical parameters.
-    pub params: Vec<(String, ParamValue)>,
-    /// The channel, for a single-channel finding (`cp07`).
-    pub channel: Option<String>,
-    /// Every channel the finding concerns (one for a fault; one, some or all for a lag).
-    pub channels: Vec<String>,
-    /// Mean square the finding explains per affected training sample, Cp^2.
-    pub explained: f64,
-    /// Noise variance of the affected channels' innovations, Cp^2.
-    pub noise_var: f64,
-    /// Evidence: `N_eff ln(SSR_0 / SSR) - k ln N_eff`.
-    pub delta_bic: f64,
-    /// Held-out gap before and after, Cp.
-    pub heldout: regression::HeldoutGap,
-    /// Gap on the selection part before and after, Cp (the decisions rest on it).
-    pub selection: regression::HeldoutGap,
-    /// One line of evidence for the report.
-    pub evidence: String,
-}
-
-/// A parameter value: a number or a word (the fault mode).
-#[derive(Debug, Clone, PartialEq)]
-pub enum ParamValue {
-    /// A number.
-    Number(f64),
-    /// A word.
-    Text(String),
-}
-
-/// Name of channel `tap` (0-based) as in the dataset (`cp01`).
-#[must_use]
-pub fn channel_name(tap: usize) -> String {
-    format!("cp{:02}", tap + 1)
-}
 
 /// Every sensor finding, strongest first ([`scan`]'s ranked findings).
 #[must_use]
@@ -158,28 +119,6 @@ pub fn scan(
     out.extend((0..n_taps).filter_map(|tap| fault_finding(runs, tap, n_taps)));
     out.sort_by(|a, b| strength(b).total_cmp(&strength(a)));
     Findings { ranked: out, channel_lags: channel_lags(runs, &alone, &best_alone, &grid) }
-}
-
-impl SensorFinding {
-    /// Its key in the sim's signature: the name and its channels (`pressure_lag:cp03+cp07`).
-    #[must_use]
-    pub fn floor_key(&self) -> String {
-        format!("{}:{}", self.effect, self.channels.join("+"))
-    }
-}
-
-/// Whether a finding is a lag of a whole set: the common lag, or every channel's own lag
-/// ([`super::lag_set`], its shared part from the healthy channels or the balance), not a group
-/// found on the innovations alone (marked by the sim's own alignment among its parameters).
-#[must_use]
-pub fn is_set_lag(finding: &SensorFinding) -> bool {
-    finding.effect == Effect::PressureLag && finding.params.iter().any(|(key, _)| key == "reference_tau_s")
-}
-
-/// Strength of a finding in noise units: explained mean square over the noise variance.
-#[must_use]
-pub fn strength(finding: &SensorFinding) -> f64 {
-    if finding.noise_var > 0.0 { finding.explained / finding.noise_var } else { 0.0 }
 }
 
 use faults::segments_of;
@@ -342,7 +281,7 @@ fn lag_findings<'a>(
 /// of each member with every other channel de-lagged (`judged`, [`super::lag_set::Judged`]):
 /// one column per member at its own time constant, pooled, as a group's
 /// ([`lag_findings`]). `reference_tau_s` (the sim's own alignment) marks it as a whole set
-/// ([`is_set_lag`]).
+/// ([`super::finding::is_set_lag`]).
 fn set_finding(
     runs: &[RunStreams],
     judged: &super::lag_set::Judged,
@@ -509,16 +448,6 @@ fn lag_finding(
                 .join(", ")
         ),
     }
-}
-
-/// `N_eff ln(SSR_0 / SSR) - k ln N_eff` with `N_eff = N / tau`.
-#[must_use]
-pub fn delta_bic(fit: &regression::Fit, autocorrelation_time: f64, k: usize) -> f64 {
-    let n_eff = fit.n as f64 / autocorrelation_time.max(1.0);
-    if fit.ssr <= 0.0 || fit.ssr_base <= 0.0 || n_eff < 2.0 {
-        return 0.0;
-    }
-    n_eff * (fit.ssr_base / fit.ssr).ln() - k as f64 * n_eff.ln()
 }
 
 /// The fault candidate of one channel (docs/spec/diagnosis.md, pressure_fault: "stuck, dead

@@ -346,12 +346,12 @@ impl SensorAttribution {
             .collect();
         // A whole set that qualifies names its channels: a group the innovations found within it
         // is part of the same lag (what the filter without the group sees of a large set).
-        let confirmed_set = qualifying.iter().find(|f| sensor::is_set_lag(f)).map(|f| f.channels.clone());
+        let confirmed_set = qualifying.iter().find(|f| finding::is_set_lag(f)).map(|f| f.channels.clone());
         let named = qualifying
             .into_iter()
             .filter(|f| {
                 confirmed_set.as_ref().is_none_or(|set| {
-                    sensor::is_set_lag(f)
+                    finding::is_set_lag(f)
                         || f.effect != firmware_sim::effect::Effect::PressureLag
                         || !f.channels.iter().all(|channel| set.contains(channel))
                 })
@@ -370,7 +370,7 @@ impl SensorAttribution {
     /// And a finding on the innovations alone must be a cause of its channels' gap, not a
     /// sliver of it: on the selection part it removes at least [`MIN_SENSOR_GAP_SHARE`] of the
     /// mean square its channels hold beyond the noise ([`Self::gap_share`]). A lag of a whole
-    /// set ([`sensor::is_set_lag`]) is measured beyond the sim's own lags: each channel's
+    /// set ([`finding::is_set_lag`]) is measured beyond the sim's own lags: each channel's
     /// beyond what the sim shows on the data it was fitted on (the signature's
     /// `pressure_channel_lags`), the shared part beyond its own alignment. So the lag-like part
     /// of the pressure model's own error is already taken out of it, and the rest of that error
@@ -379,7 +379,7 @@ impl SensorAttribution {
         let min_ratio = MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE;
         Self::excess_of(finding, floor) >= min_ratio.max(Self::floor_of(finding, floor))
             && finding.delta_bic >= MIN_DELTA_BIC
-            && (sensor::is_set_lag(finding) || Self::gap_share(finding) >= MIN_SENSOR_GAP_SHARE)
+            && (finding::is_set_lag(finding) || Self::gap_share(finding) >= MIN_SENSOR_GAP_SHARE)
     }
 
     /// The share of its channels' mean square beyond the noise on the selection part that a

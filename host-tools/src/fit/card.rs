@@ -20,22 +20,23 @@ struct ModelJson<'a> {
     dataset: &'a str,
     /// The fit's numbers.
     report: &'a FitReport,
-    /// The tables, as the core holds them.
-    coefficients: String,
+    /// The tables, as the core holds them (its serde form, the one the blob's postcard
+    /// payload carries, field by field).
+    coefficients: &'a CoefficientSet,
 }
 
-/// Writes the model folder `dir` completely or not at all; with a `signature`, also the
-/// diagnosis signature of the model on its own held-out data (`diagnose` reads it).
+/// Writes the model folder `dir` completely or not at all, with `companions` (name, bytes):
+/// further files the caller made from the fit, such as the model's diagnosis signature on its
+/// own held-out data, that must land in the same folder or not at all.
 pub fn write_model_folder(
     dir: &Path,
     outcome: &FitOutcome,
     dataset: &str,
-    signature: Option<&crate::diagnose::Signature>,
+    companions: &[(&str, Vec<u8>)],
 ) -> Result<(), ModelError> {
-    let signature = signature.map(|s| serde_json::to_string_pretty(s).unwrap_or_default());
     let blob =
         crate::model::encode(&outcome.set).map_err(|error| ModelError::ToBlob { path: dir.join(BLOB_FILE), error })?;
-    let json = ModelJson { dataset, report: &outcome.report, coefficients: format!("{:?}", outcome.set) };
+    let json = ModelJson { dataset, report: &outcome.report, coefficients: &outcome.set };
     let json = serde_json::to_string_pretty(&json).unwrap_or_else(|error| format!("{{\"error\": \"{error}\"}}"));
     let card = model_card(&outcome.set, &outcome.report, dataset);
     let plots = sweep_plots(&outcome.report);
@@ -46,8 +47,8 @@ pub fn write_model_folder(
         write(BLOB_FILE, &blob)?;
         write("model.json", json.as_bytes())?;
         write("model.md", card.as_bytes())?;
-        if let Some(signature) = &signature {
-            write(crate::diagnose::SIGNATURE_FILE, signature.as_bytes())?;
+        for (name, bytes) in companions {
+            write(name, bytes)?;
         }
         for (name, plot) in &plots {
             write(name, plot.as_bytes())?;

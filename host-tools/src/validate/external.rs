@@ -177,7 +177,7 @@ pub fn run(dir: &Path, progress: &(dyn Fn() + Sync)) -> Result<Outcome, External
         let truth_path = dir.join(&case.truth);
         let truth_error = |message: String| ExternalError::Truth { path: truth_path.clone(), message };
         let bytes = std::fs::read(&truth_path).map_err(|e| truth_error(e.to_string()))?;
-        let hash = score::sha256_hex(&bytes);
+        let hash = crate::digest::sha256_hex(&bytes);
         if hash != case.truth_sha256 {
             return Err(truth_error(format!(
                 "its SHA-256 is {hash}, but the campaign recorded {} before the diagnosis",

@@ -217,7 +217,7 @@ fn run_case(config: &CampaignConfig, id: usize, class: Option<Effect>, models: &
         );
     }
     let truth = format!("{effects:?}");
-    let truth_sha256 = score::sha256_hex(truth.as_bytes());
+    let truth_sha256 = crate::digest::sha256_hex(truth.as_bytes());
     let clock = Instant::now();
     let diagnose_config = DiagnoseConfig { signature: Some(signature), ..DiagnoseConfig::default() };
     let outcome = diagnose(&real, Some((&set, "fitted on a clean recording".into())), &diagnose_config, &|_| {});

@@ -5,15 +5,8 @@
 use std::collections::BTreeMap;
 
 use serde::Serialize;
-use sha2::{Digest, Sha256};
 
 use super::{CaseRecord, class_name, class_of, classes, outside_vocabulary};
-
-/// Hex SHA-256 of `bytes`.
-#[must_use]
-pub fn sha256_hex(bytes: &[u8]) -> String {
-    Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect()
-}
 
 /// Whether a case was diagnosed right: the verdict `none` for a clean recording; `unattributed` for an
 /// effect outside the vocabulary; the injected effect ranked first otherwise, and for a sensor
@@ -424,13 +417,6 @@ mod tests {
     fn assert_close(actual: Option<f64>, expected: f64) {
         let value = actual.expect("a figure");
         assert!((value - expected).abs() < 1e-12, "{value} != {expected}");
-    }
-
-    /// The FIPS 180-2 test vectors of SHA-256: the seal of the truth must be the standard hash.
-    #[test]
-    fn sha256_matches_the_standard_test_vectors() {
-        assert_eq!(sha256_hex(b""), "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855");
-        assert_eq!(sha256_hex(b"abc"), "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
     }
 
     /// No effect injected: right exactly when the verdict is `none` (an `unattributed` false

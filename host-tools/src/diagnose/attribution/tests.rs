@@ -7,8 +7,8 @@ use rand_distr::{Distribution, Normal};
 
 use super::*;
 use crate::diagnose::candidates::{GravityTare, InertialTare, test_context};
+use crate::diagnose::finding::{ParamValue, SensorFinding};
 use crate::diagnose::result::Verdict;
-use crate::diagnose::sensor::{ParamValue, SensorFinding};
 use crate::diagnose::streams::synthetic_run;
 use crate::diagnose::{
     BalanceAttribution, Decision, GapSummary, LeftGap, MAX_REMAINDER_GAP_SHARE, MAX_REMAINDER_GAP_TO_NOISE,

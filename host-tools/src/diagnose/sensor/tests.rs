@@ -4,6 +4,7 @@ use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 
 use super::*;
+use crate::diagnose::pressure_lag::tests as lag_runs;
 use crate::diagnose::regression::{Fit, HeldoutGap, Interleave};
 use crate::diagnose::streams::synthetic_run;
 use crate::diagnose::{MIN_DELTA_BIC, MIN_EFFECT_TO_NOISE};
@@ -628,4 +629,17 @@ fn lags_of(runs: &[RunStreams], n_taps: usize) -> Vec<SensorFinding> {
         runs.iter().map(|run| run.innovation_alone.iter().take(n_taps).map(Vec::as_slice).collect()).collect();
     let best_alone = best_lags(runs, &alone, &grid, n_taps);
     lag_findings(runs, n_taps, &alone, &best_alone, &grid)
+}
+
+/// The sensor scan names a lag of nine channels on those nine, its evidence measured on the
+/// innovations with the other channels de-lagged: there the members' whole lag shows.
+#[test]
+fn the_scan_names_a_lag_of_nine_channels_on_exactly_those_nine() {
+    let taus = [0.02, 0.03, 0.0, 0.045, 0.025, 0.0, 0.035, 0.02, 0.03, 0.04, 0.0, 0.025];
+    let runs: Vec<RunStreams> = (40..43).map(|seed| lag_runs::run_known(seed, &taus)).collect();
+    let findings = findings(&runs, 0.0);
+    let lag = findings.iter().find(|f| f.effect == firmware_sim::effect::Effect::PressureLag).expect("a lag finding");
+    let expected: Vec<String> = (0..TAPS).filter(|&tap| taus[tap] > 0.0).map(channel_name).collect();
+    assert_eq!(lag.channels, expected, "{}", lag.evidence);
+    assert!(lag.selection.removed() > 0.25 * lag.noise_var, "{:?}", lag.selection);
 }
