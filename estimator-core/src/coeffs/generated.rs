@@ -3,19 +3,20 @@
 //! Source: the fit on the default synthetic campaign (host-tools simulate, seed 1; host-tools fit; models/default).
 //! Blob: 3063 bytes, SHA-256 26a537e5dfbec06958edf0f991ca1dee8234868377813a092312a8b725855d0e, schema version 7.
 //! Sparse models: plant[0].model 15 terms, plant[1].model 15 terms, coupling 15 terms.
-
 use super::{
-    ActuatorResponse, CoefficientSet, ControllerParams, EgkParams, Envelope, FusionParams, MAX_VARS, PlantParams,
-    PressureModel, RateFilter, coupling_var, plant_var,
+    ActuatorResponse, CoefficientSet, ControllerParams, EgkParams, Envelope,
+    FusionParams, MAX_VARS, PlantParams, PressureModel, RateFilter, coupling_var,
+    plant_var,
 };
-use crate::sparse::Factor::*;
-use crate::sparse::{Monomial, SparseModel, Term};
-
+use crate::sparse::{Factor, Monomial, SparseModel, Term};
 /// The default coefficient set compiled into the estimator: the fit on the default synthetic campaign (host-tools simulate, seed 1; host-tools fit; models/default)
 pub const DEFAULT: CoefficientSet = CoefficientSet {
     schema_version: 7,
     dt_s: 0.001,
-    rate_filter: RateFilter { rate_pole: 0.66470826, accel_pole: 0.66470826 },
+    rate_filter: RateFilter {
+        rate_pole: 0.66470826,
+        accel_pole: 0.66470826,
+    },
     alpha_schedule_deg: [0.0, 10.0, 20.0, 21.0, 22.0, 23.0, 24.0, 25.0],
     n_alpha: 3,
     egk: [
@@ -30,7 +31,7 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
             clpdot: -0.027071139,
             clpp: 0.010555203,
             vortex_gain: -3.6963397e-18,
-            bias: -1.9504687e-6,
+            bias: -0.0000019504687,
             half_span_time_s: 0.022076923,
         },
         EgkParams {
@@ -44,7 +45,7 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
             clpdot: -0.026983682,
             clpp: 0.010519491,
             vortex_gain: 0.018897347,
-            bias: -1.4463864e-6,
+            bias: -0.0000014463864,
             half_span_time_s: 0.022076923,
         },
         EgkParams {
@@ -58,7 +59,7 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
             clpdot: -0.02779798,
             clpp: 0.008901153,
             vortex_gain: 0.031231457,
-            bias: -4.918594e-6,
+            bias: -0.000004918594,
             half_span_time_s: 0.022076923,
         },
         EgkParams {
@@ -72,7 +73,7 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
             clpdot: -0.02779798,
             clpp: 0.008901153,
             vortex_gain: 0.031231457,
-            bias: -4.918594e-6,
+            bias: -0.000004918594,
             half_span_time_s: 0.022076923,
         },
         EgkParams {
@@ -86,7 +87,7 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
             clpdot: -0.02779798,
             clpp: 0.008901153,
             vortex_gain: 0.031231457,
-            bias: -4.918594e-6,
+            bias: -0.000004918594,
             half_span_time_s: 0.022076923,
         },
         EgkParams {
@@ -100,7 +101,7 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
             clpdot: -0.02779798,
             clpp: 0.008901153,
             vortex_gain: 0.031231457,
-            bias: -4.918594e-6,
+            bias: -0.000004918594,
             half_span_time_s: 0.022076923,
         },
         EgkParams {
@@ -114,7 +115,7 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
             clpdot: -0.02779798,
             clpp: 0.008901153,
             vortex_gain: 0.031231457,
-            bias: -4.918594e-6,
+            bias: -0.000004918594,
             half_span_time_s: 0.022076923,
         },
         EgkParams {
@@ -128,7 +129,7 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
             clpdot: -0.02779798,
             clpp: 0.008901153,
             vortex_gain: 0.031231457,
-            bias: -4.918594e-6,
+            bias: -0.000004918594,
             half_span_time_s: 0.022076923,
         },
     ],
@@ -244,7 +245,7 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
                 0.00014582137,
             ],
             [
-                7.763361e-5,
+                0.00007763361,
                 -0.0013497784,
                 -0.0029118964,
                 -0.00077121146,
@@ -257,14 +258,14 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
             ],
         ],
         b: [
-            [-7.076316e-5, -6.603415e-5, -0.32536498, -1.5206348e-19, 0.00065347797],
+            [-0.00007076316, -0.00006603415, -0.32536498, -1.5206348e-19, 0.00065347797],
             [-0.0030847494, -0.0010500215, 0.7739206, 5.517875e-19, -0.0015478939],
             [0.004680865, 0.0012252458, 3.308543, 1.4619712e-18, -0.006574567],
             [0.00485952, -0.002292648, -1.9964529, -6.3812864e-19, 0.003961686],
             [-0.0005995636, -0.0020469395, -2.798872, -1.0781197e-18, 0.0055550137],
             [-0.001139822, -0.005552499, 1.0886781, 1.4157976e-18, -0.0022110187],
-            [3.92891e-5, -0.005619748, -0.9979057, 3.8320486e-19, 0.0019446679],
-            [3.286025e-5, 0.004405524, -1.4298341, -1.4064155e-18, 0.0028793484],
+            [0.0000392891, -0.005619748, -0.9979057, 3.8320486e-19, 0.0019446679],
+            [0.00003286025, 0.004405524, -1.4298341, -1.4064155e-18, 0.0028793484],
             [0.0005128685, -0.0010991441, -0.9571202, -3.0598303e-19, 0.0018977091],
             [-0.00026057774, -0.00042667752, 0.17583947, 1.5487805e-19, -0.00035356448],
         ],
@@ -589,8 +590,18 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
         settle_steps: 12,
         cl_weights: [
             [
-                -2.1487272, 2.223532, 0.8641518, -1.0489502, 0.8318849, -0.7544472, -7.736453, -5.1081185, 20.28475,
-                5.626666, -12.302961, -0.8885395,
+                -2.1487272,
+                2.223532,
+                0.8641518,
+                -1.0489502,
+                0.8318849,
+                -0.7544472,
+                -7.736453,
+                -5.1081185,
+                20.28475,
+                5.626666,
+                -12.302961,
+                -0.8885395,
             ],
             [
                 -0.9818171,
@@ -702,29 +713,128 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
             -0.007697369,
         ],
     },
-    fusion: FusionParams { rho: 0.9512294, gain: 0.0010300385 },
+    fusion: FusionParams {
+        rho: 0.9512294,
+        gain: 0.0010300385,
+    },
     plant: [
         PlantParams {
             slow_pole: 0.99004984,
             cmu_max: 0.009207697,
             model: SparseModel {
                 terms: [
-                    Term { coeff: 0.9522405, monomial: Monomial { factors: [Var0, One, One], gate_mask: 0 } },
-                    Term { coeff: 0.13134484, monomial: Monomial { factors: [Var1, One, One], gate_mask: 0 } },
-                    Term { coeff: 2.3539716e-5, monomial: Monomial { factors: [Var3, One, One], gate_mask: 0 } },
-                    Term { coeff: -1.1870997, monomial: Monomial { factors: [Var0, Var1, One], gate_mask: 0 } },
-                    Term { coeff: 0.09701265, monomial: Monomial { factors: [Var0, Var3, One], gate_mask: 0 } },
-                    Term { coeff: -12.634289, monomial: Monomial { factors: [Var1, Var1, One], gate_mask: 0 } },
-                    Term { coeff: 0.0722118, monomial: Monomial { factors: [Var1, Var3, One], gate_mask: 0 } },
-                    Term { coeff: -7.933955e-5, monomial: Monomial { factors: [Var3, Var3, One], gate_mask: 0 } },
-                    Term { coeff: -2.2119124, monomial: Monomial { factors: [Var1, Var1, Var3], gate_mask: 0 } },
-                    Term { coeff: -0.35991338, monomial: Monomial { factors: [Var1, Var3, Var3], gate_mask: 0 } },
-                    Term { coeff: -0.16400297, monomial: Monomial { factors: [Var0, Var3, Var3], gate_mask: 0 } },
-                    Term { coeff: 2.6323154, monomial: Monomial { factors: [Var0, Var1, Var3], gate_mask: 0 } },
-                    Term { coeff: 657.2904, monomial: Monomial { factors: [Var1, Var1, Var1], gate_mask: 0 } },
-                    Term { coeff: -0.0050395546, monomial: Monomial { factors: [Var4, One, One], gate_mask: 0 } },
-                    Term { coeff: -0.039638106, monomial: Monomial { factors: [Var3, Var4, One], gate_mask: 0 } },
-                    Term { coeff: 0.0, monomial: Monomial { factors: [One, One, One], gate_mask: 0 } },
+                    Term {
+                        coeff: 0.9522405,
+                        monomial: Monomial {
+                            factors: [Factor::Var0, Factor::One, Factor::One],
+                            gate_mask: 0,
+                        },
+                    },
+                    Term {
+                        coeff: 0.13134484,
+                        monomial: Monomial {
+                            factors: [Factor::Var1, Factor::One, Factor::One],
+                            gate_mask: 0,
+                        },
+                    },
+                    Term {
+                        coeff: 0.000023539716,
+                        monomial: Monomial {
+                            factors: [Factor::Var3, Factor::One, Factor::One],
+                            gate_mask: 0,
+                        },
+                    },
+                    Term {
+                        coeff: -1.1870997,
+                        monomial: Monomial {
+                            factors: [Factor::Var0, Factor::Var1, Factor::One],
+                            gate_mask: 0,
+                        },
+                    },
+                    Term {
+                        coeff: 0.09701265,
+                        monomial: Monomial {
+                            factors: [Factor::Var0, Factor::Var3, Factor::One],
+                            gate_mask: 0,
+                        },
+                    },
+                    Term {
+                        coeff: -12.634289,
+                        monomial: Monomial {
+                            factors: [Factor::Var1, Factor::Var1, Factor::One],
+                            gate_mask: 0,
+                        },
+                    },
+                    Term {
+                        coeff: 0.0722118,
+                        monomial: Monomial {
+                            factors: [Factor::Var1, Factor::Var3, Factor::One],
+                            gate_mask: 0,
+                        },
+                    },
+                    Term {
+                        coeff: -0.00007933955,
+                        monomial: Monomial {
+                            factors: [Factor::Var3, Factor::Var3, Factor::One],
+                            gate_mask: 0,
+                        },
+                    },
+                    Term {
+                        coeff: -2.2119124,
+                        monomial: Monomial {
+                            factors: [Factor::Var1, Factor::Var1, Factor::Var3],
+                            gate_mask: 0,
+                        },
+                    },
+                    Term {
+                        coeff: -0.35991338,
+                        monomial: Monomial {
+                            factors: [Factor::Var1, Factor::Var3, Factor::Var3],
+                            gate_mask: 0,
+                        },
+                    },
+                    Term {
+                        coeff: -0.16400297,
+                        monomial: Monomial {
+                            factors: [Factor::Var0, Factor::Var3, Factor::Var3],
+                            gate_mask: 0,
+                        },
+                    },
+                    Term {
+                        coeff: 2.6323154,
+                        monomial: Monomial {
+                            factors: [Factor::Var0, Factor::Var1, Factor::Var3],
+                            gate_mask: 0,
+                        },
+                    },
+                    Term {
+                        coeff: 657.2904,
+                        monomial: Monomial {
+                            factors: [Factor::Var1, Factor::Var1, Factor::Var1],
+                            gate_mask: 0,
+                        },
+                    },
+                    Term {
+                        coeff: -0.0050395546,
+                        monomial: Monomial {
+                            factors: [Factor::Var4, Factor::One, Factor::One],
+                            gate_mask: 0,
+                        },
+                    },
+                    Term {
+                        coeff: -0.039638106,
+                        monomial: Monomial {
+                            factors: [Factor::Var3, Factor::Var4, Factor::One],
+                            gate_mask: 0,
+                        },
+                    },
+                    Term {
+                        coeff: 0.0,
+                        monomial: Monomial {
+                            factors: [Factor::One, Factor::One, Factor::One],
+                            gate_mask: 0,
+                        },
+                    },
                 ],
                 n_terms: 15,
                 gate_threshold: [0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
@@ -735,22 +845,118 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
             cmu_max: 0.009207697,
             model: SparseModel {
                 terms: [
-                    Term { coeff: 0.9522405, monomial: Monomial { factors: [Var0, One, One], gate_mask: 0 } },
-                    Term { coeff: -0.13134484, monomial: Monomial { factors: [Var1, One, One], gate_mask: 0 } },
-                    Term { coeff: -2.3539716e-5, monomial: Monomial { factors: [Var3, One, One], gate_mask: 0 } },
-                    Term { coeff: -1.1870997, monomial: Monomial { factors: [Var0, Var1, One], gate_mask: 0 } },
-                    Term { coeff: 0.09701265, monomial: Monomial { factors: [Var0, Var3, One], gate_mask: 0 } },
-                    Term { coeff: 12.634289, monomial: Monomial { factors: [Var1, Var1, One], gate_mask: 0 } },
-                    Term { coeff: -0.0722118, monomial: Monomial { factors: [Var1, Var3, One], gate_mask: 0 } },
-                    Term { coeff: 7.933955e-5, monomial: Monomial { factors: [Var3, Var3, One], gate_mask: 0 } },
-                    Term { coeff: 2.2119124, monomial: Monomial { factors: [Var1, Var1, Var3], gate_mask: 0 } },
-                    Term { coeff: 0.35991338, monomial: Monomial { factors: [Var1, Var3, Var3], gate_mask: 0 } },
-                    Term { coeff: -0.16400297, monomial: Monomial { factors: [Var0, Var3, Var3], gate_mask: 0 } },
-                    Term { coeff: 2.6323154, monomial: Monomial { factors: [Var0, Var1, Var3], gate_mask: 0 } },
-                    Term { coeff: -657.2904, monomial: Monomial { factors: [Var1, Var1, Var1], gate_mask: 0 } },
-                    Term { coeff: -0.0050395546, monomial: Monomial { factors: [Var4, One, One], gate_mask: 0 } },
-                    Term { coeff: -0.039638106, monomial: Monomial { factors: [Var3, Var4, One], gate_mask: 0 } },
-                    Term { coeff: -0.0, monomial: Monomial { factors: [One, One, One], gate_mask: 0 } },
+                    Term {
+                        coeff: 0.9522405,
+                        monomial: Monomial {
+                            factors: [Factor::Var0, Factor::One, Factor::One],
+                            gate_mask: 0,
+                        },
+                    },
+                    Term {
+                        coeff: -0.13134484,
+                        monomial: Monomial {
+                            factors: [Factor::Var1, Factor::One, Factor::One],
+                            gate_mask: 0,
+                        },
+                    },
+                    Term {
+                        coeff: -0.000023539716,
+                        monomial: Monomial {
+                            factors: [Factor::Var3, Factor::One, Factor::One],
+                            gate_mask: 0,
+                        },
+                    },
+                    Term {
+                        coeff: -1.1870997,
+                        monomial: Monomial {
+                            factors: [Factor::Var0, Factor::Var1, Factor::One],
+                            gate_mask: 0,
+                        },
+                    },
+                    Term {
+                        coeff: 0.09701265,
+                        monomial: Monomial {
+                            factors: [Factor::Var0, Factor::Var3, Factor::One],
+                            gate_mask: 0,
+                        },
+                    },
+                    Term {
+                        coeff: 12.634289,
+                        monomial: Monomial {
+                            factors: [Factor::Var1, Factor::Var1, Factor::One],
+                            gate_mask: 0,
+                        },
+                    },
+                    Term {
+                        coeff: -0.0722118,
+                        monomial: Monomial {
+                            factors: [Factor::Var1, Factor::Var3, Factor::One],
+                            gate_mask: 0,
+                        },
+                    },
+                    Term {
+                        coeff: 0.00007933955,
+                        monomial: Monomial {
+                            factors: [Factor::Var3, Factor::Var3, Factor::One],
+                            gate_mask: 0,
+                        },
+                    },
+                    Term {
+                        coeff: 2.2119124,
+                        monomial: Monomial {
+                            factors: [Factor::Var1, Factor::Var1, Factor::Var3],
+                            gate_mask: 0,
+                        },
+                    },
+                    Term {
+                        coeff: 0.35991338,
+                        monomial: Monomial {
+                            factors: [Factor::Var1, Factor::Var3, Factor::Var3],
+                            gate_mask: 0,
+                        },
+                    },
+                    Term {
+                        coeff: -0.16400297,
+                        monomial: Monomial {
+                            factors: [Factor::Var0, Factor::Var3, Factor::Var3],
+                            gate_mask: 0,
+                        },
+                    },
+                    Term {
+                        coeff: 2.6323154,
+                        monomial: Monomial {
+                            factors: [Factor::Var0, Factor::Var1, Factor::Var3],
+                            gate_mask: 0,
+                        },
+                    },
+                    Term {
+                        coeff: -657.2904,
+                        monomial: Monomial {
+                            factors: [Factor::Var1, Factor::Var1, Factor::Var1],
+                            gate_mask: 0,
+                        },
+                    },
+                    Term {
+                        coeff: -0.0050395546,
+                        monomial: Monomial {
+                            factors: [Factor::Var4, Factor::One, Factor::One],
+                            gate_mask: 0,
+                        },
+                    },
+                    Term {
+                        coeff: -0.039638106,
+                        monomial: Monomial {
+                            factors: [Factor::Var3, Factor::Var4, Factor::One],
+                            gate_mask: 0,
+                        },
+                    },
+                    Term {
+                        coeff: -0.0,
+                        monomial: Monomial {
+                            factors: [Factor::One, Factor::One, Factor::One],
+                            gate_mask: 0,
+                        },
+                    },
                 ],
                 n_terms: 15,
                 gate_threshold: [0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
@@ -759,25 +965,121 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
     ],
     coupling: SparseModel {
         terms: [
-            Term { coeff: 15.224497, monomial: Monomial { factors: [Var0, Var1, One], gate_mask: 40 } },
-            Term { coeff: -10.211983, monomial: Monomial { factors: [Var0, Var3, One], gate_mask: 40 } },
-            Term { coeff: 0.33964378, monomial: Monomial { factors: [Var1, Var2, One], gate_mask: 40 } },
-            Term { coeff: 0.08388126, monomial: Monomial { factors: [Var1, Var5, One], gate_mask: 40 } },
-            Term { coeff: -2123.7434, monomial: Monomial { factors: [Var0, Var1, Var1], gate_mask: 40 } },
-            Term { coeff: 2255.464, monomial: Monomial { factors: [Var0, Var1, Var3], gate_mask: 40 } },
-            Term { coeff: 15.537378, monomial: Monomial { factors: [Var0, Var2, Var3], gate_mask: 40 } },
-            Term { coeff: -386.036, monomial: Monomial { factors: [Var1, Var1, Var1], gate_mask: 40 } },
-            Term { coeff: -91.62881, monomial: Monomial { factors: [Var1, Var1, Var2], gate_mask: 40 } },
-            Term { coeff: 1260.3801, monomial: Monomial { factors: [Var1, Var1, Var3], gate_mask: 40 } },
-            Term { coeff: -50.804432, monomial: Monomial { factors: [Var1, Var1, Var5], gate_mask: 40 } },
-            Term { coeff: -0.52399087, monomial: Monomial { factors: [Var1, Var2, Var2], gate_mask: 40 } },
-            Term { coeff: 86.723816, monomial: Monomial { factors: [Var1, Var2, Var3], gate_mask: 40 } },
-            Term { coeff: -951.7204, monomial: Monomial { factors: [Var1, Var3, Var3], gate_mask: 40 } },
-            Term { coeff: 45.10289, monomial: Monomial { factors: [Var1, Var3, Var5], gate_mask: 40 } },
-            Term { coeff: 0.0, monomial: Monomial { factors: [One, One, One], gate_mask: 0 } },
+            Term {
+                coeff: 15.224497,
+                monomial: Monomial {
+                    factors: [Factor::Var0, Factor::Var1, Factor::One],
+                    gate_mask: 40,
+                },
+            },
+            Term {
+                coeff: -10.211983,
+                monomial: Monomial {
+                    factors: [Factor::Var0, Factor::Var3, Factor::One],
+                    gate_mask: 40,
+                },
+            },
+            Term {
+                coeff: 0.33964378,
+                monomial: Monomial {
+                    factors: [Factor::Var1, Factor::Var2, Factor::One],
+                    gate_mask: 40,
+                },
+            },
+            Term {
+                coeff: 0.08388126,
+                monomial: Monomial {
+                    factors: [Factor::Var1, Factor::Var5, Factor::One],
+                    gate_mask: 40,
+                },
+            },
+            Term {
+                coeff: -2123.7434,
+                monomial: Monomial {
+                    factors: [Factor::Var0, Factor::Var1, Factor::Var1],
+                    gate_mask: 40,
+                },
+            },
+            Term {
+                coeff: 2255.464,
+                monomial: Monomial {
+                    factors: [Factor::Var0, Factor::Var1, Factor::Var3],
+                    gate_mask: 40,
+                },
+            },
+            Term {
+                coeff: 15.537378,
+                monomial: Monomial {
+                    factors: [Factor::Var0, Factor::Var2, Factor::Var3],
+                    gate_mask: 40,
+                },
+            },
+            Term {
+                coeff: -386.036,
+                monomial: Monomial {
+                    factors: [Factor::Var1, Factor::Var1, Factor::Var1],
+                    gate_mask: 40,
+                },
+            },
+            Term {
+                coeff: -91.62881,
+                monomial: Monomial {
+                    factors: [Factor::Var1, Factor::Var1, Factor::Var2],
+                    gate_mask: 40,
+                },
+            },
+            Term {
+                coeff: 1260.3801,
+                monomial: Monomial {
+                    factors: [Factor::Var1, Factor::Var1, Factor::Var3],
+                    gate_mask: 40,
+                },
+            },
+            Term {
+                coeff: -50.804432,
+                monomial: Monomial {
+                    factors: [Factor::Var1, Factor::Var1, Factor::Var5],
+                    gate_mask: 40,
+                },
+            },
+            Term {
+                coeff: -0.52399087,
+                monomial: Monomial {
+                    factors: [Factor::Var1, Factor::Var2, Factor::Var2],
+                    gate_mask: 40,
+                },
+            },
+            Term {
+                coeff: 86.723816,
+                monomial: Monomial {
+                    factors: [Factor::Var1, Factor::Var2, Factor::Var3],
+                    gate_mask: 40,
+                },
+            },
+            Term {
+                coeff: -951.7204,
+                monomial: Monomial {
+                    factors: [Factor::Var1, Factor::Var3, Factor::Var3],
+                    gate_mask: 40,
+                },
+            },
+            Term {
+                coeff: 45.10289,
+                monomial: Monomial {
+                    factors: [Factor::Var1, Factor::Var3, Factor::Var5],
+                    gate_mask: 40,
+                },
+            },
+            Term {
+                coeff: 0.0,
+                monomial: Monomial {
+                    factors: [Factor::One, Factor::One, Factor::One],
+                    gate_mask: 0,
+                },
+            },
         ],
         n_terms: 15,
-        gate_threshold: [0.0, 0.0, 0.0, 9.207697e-5, 0.0, 0.004363323],
+        gate_threshold: [0.0, 0.0, 0.0, 0.00009207697, 0.0, 0.004363323],
     },
     controller: ControllerParams {
         causality_pole: 0.98,
@@ -787,12 +1089,22 @@ pub const DEFAULT: CoefficientSet = CoefficientSet {
         inversion_iterations: 16,
     },
     actuator: [
-        ActuatorResponse { delay_steps: 4, pole: 0.75784606, gain: 1.0001642 },
-        ActuatorResponse { delay_steps: 4, pole: 0.75784606, gain: 1.0001642 },
+        ActuatorResponse {
+            delay_steps: 4,
+            pole: 0.75784606,
+            gain: 1.0001642,
+        },
+        ActuatorResponse {
+            delay_steps: 4,
+            pole: 0.75784606,
+            gain: 1.0001642,
+        },
     ],
-    envelope: Envelope { cl_roll: [-0.0509789, 0.0528361], cl: [-0.0509789, 0.0549359] },
+    envelope: Envelope {
+        cl_roll: [-0.0509789, 0.0528361],
+        cl: [-0.0509789, 0.0549359],
+    },
 };
-
 /// `DEFAULT.plant[0].model` as straight-line code (15 terms), bit-identical to `SparseModel::eval` of the
 /// tables.
 #[inline]
@@ -801,22 +1113,25 @@ pub(super) fn plant_port(x: &[f32; MAX_VARS]) -> f32 {
     let mut sum = -0.0f32;
     sum += 0.9522405f32 * x[plant_var::CL_AFC];
     sum += 0.13134484f32 * x[plant_var::CMU];
-    sum += 2.3539716e-5f32 * x[plant_var::ALPHA];
+    sum += 0.000023539716f32 * x[plant_var::ALPHA];
     sum += -1.1870997f32 * x[plant_var::CL_AFC] * x[plant_var::CMU];
     sum += 0.09701265f32 * x[plant_var::CL_AFC] * x[plant_var::ALPHA];
     sum += -12.634289f32 * x[plant_var::CMU] * x[plant_var::CMU];
     sum += 0.0722118f32 * x[plant_var::CMU] * x[plant_var::ALPHA];
-    sum += -7.933955e-5f32 * x[plant_var::ALPHA] * x[plant_var::ALPHA];
+    sum += -0.00007933955f32 * x[plant_var::ALPHA] * x[plant_var::ALPHA];
     sum += -2.2119124f32 * x[plant_var::CMU] * x[plant_var::CMU] * x[plant_var::ALPHA];
-    sum += -0.35991338f32 * x[plant_var::CMU] * x[plant_var::ALPHA] * x[plant_var::ALPHA];
-    sum += -0.16400297f32 * x[plant_var::CL_AFC] * x[plant_var::ALPHA] * x[plant_var::ALPHA];
+    sum
+        += -0.35991338f32 * x[plant_var::CMU] * x[plant_var::ALPHA]
+            * x[plant_var::ALPHA];
+    sum
+        += -0.16400297f32 * x[plant_var::CL_AFC] * x[plant_var::ALPHA]
+            * x[plant_var::ALPHA];
     sum += 2.6323154f32 * x[plant_var::CL_AFC] * x[plant_var::CMU] * x[plant_var::ALPHA];
     sum += 657.2904f32 * x[plant_var::CMU] * x[plant_var::CMU] * x[plant_var::CMU];
     sum += -0.0050395546f32 * x[plant_var::CL_SLOW];
     sum += -0.039638106f32 * x[plant_var::ALPHA] * x[plant_var::CL_SLOW];
     sum
 }
-
 /// `DEFAULT.plant[1].model` as straight-line code (15 terms), bit-identical to `SparseModel::eval` of the
 /// tables.
 #[inline]
@@ -825,72 +1140,125 @@ pub(super) fn plant_starboard(x: &[f32; MAX_VARS]) -> f32 {
     let mut sum = -0.0f32;
     sum += 0.9522405f32 * x[plant_var::CL_AFC];
     sum += -0.13134484f32 * x[plant_var::CMU];
-    sum += -2.3539716e-5f32 * x[plant_var::ALPHA];
+    sum += -0.000023539716f32 * x[plant_var::ALPHA];
     sum += -1.1870997f32 * x[plant_var::CL_AFC] * x[plant_var::CMU];
     sum += 0.09701265f32 * x[plant_var::CL_AFC] * x[plant_var::ALPHA];
     sum += 12.634289f32 * x[plant_var::CMU] * x[plant_var::CMU];
     sum += -0.0722118f32 * x[plant_var::CMU] * x[plant_var::ALPHA];
-    sum += 7.933955e-5f32 * x[plant_var::ALPHA] * x[plant_var::ALPHA];
+    sum += 0.00007933955f32 * x[plant_var::ALPHA] * x[plant_var::ALPHA];
     sum += 2.2119124f32 * x[plant_var::CMU] * x[plant_var::CMU] * x[plant_var::ALPHA];
     sum += 0.35991338f32 * x[plant_var::CMU] * x[plant_var::ALPHA] * x[plant_var::ALPHA];
-    sum += -0.16400297f32 * x[plant_var::CL_AFC] * x[plant_var::ALPHA] * x[plant_var::ALPHA];
+    sum
+        += -0.16400297f32 * x[plant_var::CL_AFC] * x[plant_var::ALPHA]
+            * x[plant_var::ALPHA];
     sum += 2.6323154f32 * x[plant_var::CL_AFC] * x[plant_var::CMU] * x[plant_var::ALPHA];
     sum += -657.2904f32 * x[plant_var::CMU] * x[plant_var::CMU] * x[plant_var::CMU];
     sum += -0.0050395546f32 * x[plant_var::CL_SLOW];
     sum += -0.039638106f32 * x[plant_var::ALPHA] * x[plant_var::CL_SLOW];
     sum
 }
-
 /// `DEFAULT.coupling` as straight-line code (15 terms), bit-identical to `SparseModel::eval` of the
 /// tables.
 #[inline]
 #[must_use]
 pub(super) fn coupling(x: &[f32; MAX_VARS]) -> f32 {
     let mut sum = -0.0f32;
-    if x[coupling_var::CMU].abs() > 9.207697e-5f32 && x[coupling_var::PHI].abs() > 0.004363323f32 {
+    if x[coupling_var::CMU].abs() > 0.00009207697f32
+        && x[coupling_var::PHI].abs() > 0.004363323f32
+    {
         sum += 15.224497f32 * x[coupling_var::CL_ROLL] * x[coupling_var::CL_AFC];
     }
-    if x[coupling_var::CMU].abs() > 9.207697e-5f32 && x[coupling_var::PHI].abs() > 0.004363323f32 {
+    if x[coupling_var::CMU].abs() > 0.00009207697f32
+        && x[coupling_var::PHI].abs() > 0.004363323f32
+    {
         sum += -10.211983f32 * x[coupling_var::CL_ROLL] * x[coupling_var::CMU];
     }
-    if x[coupling_var::CMU].abs() > 9.207697e-5f32 && x[coupling_var::PHI].abs() > 0.004363323f32 {
+    if x[coupling_var::CMU].abs() > 0.00009207697f32
+        && x[coupling_var::PHI].abs() > 0.004363323f32
+    {
         sum += 0.33964378f32 * x[coupling_var::CL_AFC] * x[coupling_var::ALPHA];
     }
-    if x[coupling_var::CMU].abs() > 9.207697e-5f32 && x[coupling_var::PHI].abs() > 0.004363323f32 {
+    if x[coupling_var::CMU].abs() > 0.00009207697f32
+        && x[coupling_var::PHI].abs() > 0.004363323f32
+    {
         sum += 0.08388126f32 * x[coupling_var::CL_AFC] * x[coupling_var::PHI];
     }
-    if x[coupling_var::CMU].abs() > 9.207697e-5f32 && x[coupling_var::PHI].abs() > 0.004363323f32 {
-        sum += -2123.7434f32 * x[coupling_var::CL_ROLL] * x[coupling_var::CL_AFC] * x[coupling_var::CL_AFC];
+    if x[coupling_var::CMU].abs() > 0.00009207697f32
+        && x[coupling_var::PHI].abs() > 0.004363323f32
+    {
+        sum
+            += -2123.7434f32 * x[coupling_var::CL_ROLL] * x[coupling_var::CL_AFC]
+                * x[coupling_var::CL_AFC];
     }
-    if x[coupling_var::CMU].abs() > 9.207697e-5f32 && x[coupling_var::PHI].abs() > 0.004363323f32 {
-        sum += 2255.464f32 * x[coupling_var::CL_ROLL] * x[coupling_var::CL_AFC] * x[coupling_var::CMU];
+    if x[coupling_var::CMU].abs() > 0.00009207697f32
+        && x[coupling_var::PHI].abs() > 0.004363323f32
+    {
+        sum
+            += 2255.464f32 * x[coupling_var::CL_ROLL] * x[coupling_var::CL_AFC]
+                * x[coupling_var::CMU];
     }
-    if x[coupling_var::CMU].abs() > 9.207697e-5f32 && x[coupling_var::PHI].abs() > 0.004363323f32 {
-        sum += 15.537378f32 * x[coupling_var::CL_ROLL] * x[coupling_var::ALPHA] * x[coupling_var::CMU];
+    if x[coupling_var::CMU].abs() > 0.00009207697f32
+        && x[coupling_var::PHI].abs() > 0.004363323f32
+    {
+        sum
+            += 15.537378f32 * x[coupling_var::CL_ROLL] * x[coupling_var::ALPHA]
+                * x[coupling_var::CMU];
     }
-    if x[coupling_var::CMU].abs() > 9.207697e-5f32 && x[coupling_var::PHI].abs() > 0.004363323f32 {
-        sum += -386.036f32 * x[coupling_var::CL_AFC] * x[coupling_var::CL_AFC] * x[coupling_var::CL_AFC];
+    if x[coupling_var::CMU].abs() > 0.00009207697f32
+        && x[coupling_var::PHI].abs() > 0.004363323f32
+    {
+        sum
+            += -386.036f32 * x[coupling_var::CL_AFC] * x[coupling_var::CL_AFC]
+                * x[coupling_var::CL_AFC];
     }
-    if x[coupling_var::CMU].abs() > 9.207697e-5f32 && x[coupling_var::PHI].abs() > 0.004363323f32 {
-        sum += -91.62881f32 * x[coupling_var::CL_AFC] * x[coupling_var::CL_AFC] * x[coupling_var::ALPHA];
+    if x[coupling_var::CMU].abs() > 0.00009207697f32
+        && x[coupling_var::PHI].abs() > 0.004363323f32
+    {
+        sum
+            += -91.62881f32 * x[coupling_var::CL_AFC] * x[coupling_var::CL_AFC]
+                * x[coupling_var::ALPHA];
     }
-    if x[coupling_var::CMU].abs() > 9.207697e-5f32 && x[coupling_var::PHI].abs() > 0.004363323f32 {
-        sum += 1260.3801f32 * x[coupling_var::CL_AFC] * x[coupling_var::CL_AFC] * x[coupling_var::CMU];
+    if x[coupling_var::CMU].abs() > 0.00009207697f32
+        && x[coupling_var::PHI].abs() > 0.004363323f32
+    {
+        sum
+            += 1260.3801f32 * x[coupling_var::CL_AFC] * x[coupling_var::CL_AFC]
+                * x[coupling_var::CMU];
     }
-    if x[coupling_var::CMU].abs() > 9.207697e-5f32 && x[coupling_var::PHI].abs() > 0.004363323f32 {
-        sum += -50.804432f32 * x[coupling_var::CL_AFC] * x[coupling_var::CL_AFC] * x[coupling_var::PHI];
+    if x[coupling_var::CMU].abs() > 0.00009207697f32
+        && x[coupling_var::PHI].abs() > 0.004363323f32
+    {
+        sum
+            += -50.804432f32 * x[coupling_var::CL_AFC] * x[coupling_var::CL_AFC]
+                * x[coupling_var::PHI];
     }
-    if x[coupling_var::CMU].abs() > 9.207697e-5f32 && x[coupling_var::PHI].abs() > 0.004363323f32 {
-        sum += -0.52399087f32 * x[coupling_var::CL_AFC] * x[coupling_var::ALPHA] * x[coupling_var::ALPHA];
+    if x[coupling_var::CMU].abs() > 0.00009207697f32
+        && x[coupling_var::PHI].abs() > 0.004363323f32
+    {
+        sum
+            += -0.52399087f32 * x[coupling_var::CL_AFC] * x[coupling_var::ALPHA]
+                * x[coupling_var::ALPHA];
     }
-    if x[coupling_var::CMU].abs() > 9.207697e-5f32 && x[coupling_var::PHI].abs() > 0.004363323f32 {
-        sum += 86.723816f32 * x[coupling_var::CL_AFC] * x[coupling_var::ALPHA] * x[coupling_var::CMU];
+    if x[coupling_var::CMU].abs() > 0.00009207697f32
+        && x[coupling_var::PHI].abs() > 0.004363323f32
+    {
+        sum
+            += 86.723816f32 * x[coupling_var::CL_AFC] * x[coupling_var::ALPHA]
+                * x[coupling_var::CMU];
     }
-    if x[coupling_var::CMU].abs() > 9.207697e-5f32 && x[coupling_var::PHI].abs() > 0.004363323f32 {
-        sum += -951.7204f32 * x[coupling_var::CL_AFC] * x[coupling_var::CMU] * x[coupling_var::CMU];
+    if x[coupling_var::CMU].abs() > 0.00009207697f32
+        && x[coupling_var::PHI].abs() > 0.004363323f32
+    {
+        sum
+            += -951.7204f32 * x[coupling_var::CL_AFC] * x[coupling_var::CMU]
+                * x[coupling_var::CMU];
     }
-    if x[coupling_var::CMU].abs() > 9.207697e-5f32 && x[coupling_var::PHI].abs() > 0.004363323f32 {
-        sum += 45.10289f32 * x[coupling_var::CL_AFC] * x[coupling_var::CMU] * x[coupling_var::PHI];
+    if x[coupling_var::CMU].abs() > 0.00009207697f32
+        && x[coupling_var::PHI].abs() > 0.004363323f32
+    {
+        sum
+            += 45.10289f32 * x[coupling_var::CL_AFC] * x[coupling_var::CMU]
+                * x[coupling_var::PHI];
     }
     sum
 }

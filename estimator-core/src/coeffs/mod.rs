@@ -7,6 +7,9 @@
 //! `n_terms`).
 
 mod compiled;
+// Printed by `host-tools codegen` (prettyplease), checked against the committed model by a
+// test; rustfmt leaves the printer's layout alone.
+#[rustfmt::skip]
 mod generated;
 
 use serde::{Deserialize, Serialize};
