@@ -34,4 +34,5 @@ pub mod replay;
 pub mod report;
 pub mod sil;
 pub mod sindy;
+pub mod stats;
 pub mod validate;

@@ -107,11 +107,9 @@ pub fn superposition_over(
 }
 
 fn mean(values: &[f64]) -> f64 {
-    if values.is_empty() { f64::NAN } else { values.iter().sum::<f64>() / values.len() as f64 }
+    crate::stats::mean(values).unwrap_or(f64::NAN)
 }
 
-/// Population standard deviation.
 fn std_dev(values: &[f64]) -> f64 {
-    let centre = mean(values);
-    mean(&values.iter().map(|value| (value - centre).powi(2)).collect::<Vec<_>>()).sqrt()
+    crate::stats::population_std_dev(values).unwrap_or(f64::NAN)
 }

@@ -17,6 +17,7 @@
 use firmware_sim::dataset::RunKind;
 
 use super::streams::RunStreams;
+use crate::stats::median_high;
 
 /// The time step over which the angle's travel is its motion, s: a tenth of a second holds a
 /// few degrees of a tunnel's roll motion, far more than any encoder quantum that spikes its
@@ -59,13 +60,6 @@ fn rolling(runs: &[RunStreams]) -> impl Iterator<Item = &RunStreams> {
     runs.iter().filter(|run| matches!(run.kind, RunKind::Roll | RunKind::RollActuation))
 }
 
-/// The upper median of `values` (the middle one after sorting, the higher of the two middle
-/// ones for an even count); `None` without values. Reorders `values`.
-fn upper_median(values: &mut [f64]) -> Option<f64> {
-    values.sort_by(f64::total_cmp);
-    values.get(values.len() / 2).copied()
-}
-
 /// Below this a step of the recorded angle is the file's rounding of one value, not a step, deg.
 const RESOLUTION_DEG: f64 = 1e-9;
 
@@ -82,7 +76,7 @@ fn run_quantisation(run: &RunStreams) -> Option<Quantisation> {
         .map(|pair| (pair[1] - pair[0]).abs())
         .filter(|step| step.is_finite() && *step > RESOLUTION_DEG)
         .collect();
-    let quantum_deg = upper_median(&mut steps)?;
+    let quantum_deg = median_high(&mut steps)?;
     let coarse = ((COARSE_STEP_S * run.sample_hz).round() as usize).max(1);
     let (mut travel_deg, mut spanned) = (0.0, 0usize);
     for (a, b) in phi_deg.iter().step_by(coarse).zip(phi_deg.iter().skip(coarse).step_by(coarse)) {
@@ -144,7 +138,7 @@ pub fn play(runs: &[RunStreams]) -> Option<Play> {
     if reversals.len() < MIN_REVERSALS {
         return None;
     }
-    let median = |of: &dyn Fn(&Reversal) -> f64| upper_median(&mut reversals.iter().map(of).collect::<Vec<_>>());
+    let median = |of: &dyn Fn(&Reversal) -> f64| median_high(&mut reversals.iter().map(of).collect::<Vec<_>>());
     let exit_to_entry = median(&|r| r.exit_rate / r.entry_rate)?;
     let release_share = median(&|r| r.release_rate / r.exit_rate)?;
     let hold_s = median(&|r| r.hold_s)?;

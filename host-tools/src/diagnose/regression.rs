@@ -333,23 +333,8 @@ impl GapSums {
 /// deviation, Hampel 1974) so that spikes and steps, which are gap, are not counted as noise.
 #[must_use]
 pub fn robust_difference_var(differences: &mut [f64]) -> f64 {
-    let scale = mad_sigma(differences).unwrap_or(0.0);
+    let scale = crate::stats::mad_sigma(differences).unwrap_or(0.0);
     0.5 * scale * scale
-}
-
-/// 1.4826 times the median absolute deviation (Hampel 1974): the standard deviation of a
-/// Gaussian sample, unmoved by outliers; `None` without values. Reorders `values`.
-#[must_use]
-pub fn mad_sigma(values: &mut [f64]) -> Option<f64> {
-    if values.is_empty() {
-        return None;
-    }
-    let mid = values.len() / 2;
-    let median = *values.select_nth_unstable_by(mid, f64::total_cmp).1;
-    for value in values.iter_mut() {
-        *value = (*value - median).abs();
-    }
-    Some(1.4826 * *values.select_nth_unstable_by(mid, f64::total_cmp).1)
 }
 
 /// Noise variance of a stream from first differences over the training samples (von Neumann):

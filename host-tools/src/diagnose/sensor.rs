@@ -698,14 +698,14 @@ fn gaussian_tail(z: f64) -> f64 {
     poly * (-x * x).exp()
 }
 
-/// The robust spread of the training innovations ([`regression::mad_sigma`]).
+/// The robust spread of the training innovations ([`crate::stats::mad_sigma`]).
 fn robust_sigma(segments: &[Segment<'_>]) -> f64 {
     let mut values: Vec<f64> = segments
         .iter()
         .flat_map(|segment| segment.training.clone().map(|i| segment.residual[i]))
         .filter(|v| v.is_finite())
         .collect();
-    regression::mad_sigma(&mut values).unwrap_or(f64::INFINITY)
+    crate::stats::mad_sigma(&mut values).unwrap_or(f64::INFINITY)
 }
 
 /// Start of the first stretch of at least 10 missing samples of the channel, s; without one,

@@ -140,7 +140,7 @@ fn lowpass(values: &[f64], tau_s: f64, sample_hz: f64) -> Vec<f64> {
 }
 
 fn rms(values: &[f64]) -> f64 {
-    (values.iter().map(|v| v * v).sum::<f64>() / values.len().max(1) as f64).sqrt()
+    crate::stats::rms(values).unwrap_or(0.0)
 }
 
 #[cfg(test)]

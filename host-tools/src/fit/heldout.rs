@@ -14,9 +14,6 @@ use serde::Serialize;
 use super::split::Split;
 use crate::replay::replay_run;
 
-/// `1 / Phi^-1(3/4)`: median absolute deviation to standard deviation of a normal variable.
-const MAD_TO_STD: f64 = 1.482_602_218_505_602;
-
 /// Held-out errors at one angle of attack (RMS in C_l; `None` without runs of that kind).
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct HeldoutAlpha {
@@ -148,13 +145,7 @@ pub fn white_noise_rms(mut differences: Vec<f64>) -> Option<f64> {
     if differences.len() < 10 {
         return None;
     }
-    let median = median_of(&mut differences);
+    let median = crate::stats::median(&mut differences)?;
     let mut deviations: Vec<f64> = differences.iter().map(|d| (d - median).abs()).collect();
-    Some(MAD_TO_STD * median_of(&mut deviations) / std::f64::consts::SQRT_2)
-}
-
-fn median_of(values: &mut [f64]) -> f64 {
-    values.sort_by(f64::total_cmp);
-    let middle = values.len() / 2;
-    if values.len().is_multiple_of(2) { 0.5 * (values[middle - 1] + values[middle]) } else { values[middle] }
+    Some(crate::stats::MAD_TO_STD * crate::stats::median(&mut deviations)? / std::f64::consts::SQRT_2)
 }

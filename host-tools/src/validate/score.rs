@@ -7,6 +7,7 @@ use std::collections::BTreeMap;
 use serde::Serialize;
 
 use super::{CaseRecord, class_name, class_of, classes, outside_vocabulary};
+use crate::stats::{median, quantile};
 
 /// Whether a case was diagnosed right: the verdict `none` for a clean recording; `unattributed` for an
 /// effect outside the vocabulary; the injected effect ranked first otherwise, and for a sensor
@@ -96,20 +97,6 @@ pub struct Summary {
 
 fn share(hits: usize, total: usize) -> Option<f64> {
     (total > 0).then(|| hits as f64 / total as f64)
-}
-
-fn median(values: &mut [f64]) -> Option<f64> {
-    quantile(values, 0.5)
-}
-
-fn quantile(values: &mut [f64], q: f64) -> Option<f64> {
-    if values.is_empty() {
-        return None;
-    }
-    values.sort_by(f64::total_cmp);
-    let pos = q * (values.len() - 1) as f64;
-    let (lo, hi) = (pos.floor() as usize, pos.ceil() as usize);
-    Some(values[lo] + (pos - lo as f64) * (values[hi] - values[lo]))
 }
 
 /// Whether `ratio` falls in the bin `[lo, hi)`; the last bin, open above, also holds an

@@ -133,14 +133,3 @@ pub(crate) fn pooled_lagged_products(pairs: &[(&[f64], &[f64])], max_lag: usize)
     }
     (sums, counts)
 }
-
-/// Linear-interpolation quantile of sorted finite data (`q` in `[0, 1]`); `NaN` when empty.
-pub(crate) fn sorted_quantile(sorted: &[f64], q: f64) -> f64 {
-    if sorted.is_empty() {
-        return f64::NAN;
-    }
-    let pos = q.clamp(0.0, 1.0) * (sorted.len() - 1) as f64;
-    let lo = pos.floor() as usize;
-    let hi = pos.ceil() as usize;
-    sorted[lo] + (sorted[hi] - sorted[lo]) * (pos - lo as f64)
-}

@@ -24,7 +24,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
-use super::sorted_quantile;
+use crate::stats::quantile_sorted;
 
 /// Share of residual energy in one regime bin, with a stationary-bootstrap 95 % interval of
 /// its mean square.
@@ -81,7 +81,7 @@ pub fn regime_shares(
                 n_samples: count,
                 share: if total_energy > 0.0 { sum / total_energy } else { 0.0 },
                 mse: if count > 0 { sum / count as f64 } else { f64::NAN },
-                mse_ci95: [sorted_quantile(&draws, 0.025), sorted_quantile(&draws, 0.975)],
+                mse_ci95: [0.025, 0.975].map(|q| quantile_sorted(&draws, q).unwrap_or(f64::NAN)),
             }
         })
         .collect()

@@ -165,7 +165,7 @@ pub fn local_peak_ratio(spectrum: &Spectrum, idx: usize) -> Option<f64> {
     let mut neighbours: Vec<f64> = (lo..=hi).filter(|&j| j != idx).map(|j| psd[j]).collect();
     neighbours.retain(|p| p.is_finite());
     neighbours.sort_by(f64::total_cmp);
-    let floor = super::sorted_quantile(&neighbours, 0.5);
+    let floor = crate::stats::quantile_sorted(&neighbours, 0.5).unwrap_or(f64::NAN);
     (floor > 0.0 && psd.get(idx)?.is_finite()).then(|| psd[idx] / floor)
 }
 

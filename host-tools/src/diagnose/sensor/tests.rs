@@ -227,13 +227,13 @@ fn missing_values_and_an_unknown_spread_give_no_spikes() {
 }
 
 /// The robust spread of the training innovations: 1, 2, 3, 4, 5 have median absolute
-/// deviation 1, so 1.4826; held-out values and missing ones do not count; without values
+/// deviation 1, so `MAD_TO_STD`; held-out values and missing ones do not count; without values
 /// the spread is unknown (infinite), never 0 (which would make every sample a spike).
 #[test]
 fn the_robust_spread_uses_the_finite_training_values() {
     let residual = [1.0, 2.0, f64::NAN, 3.0, 4.0, 5.0, 100.0, 100.0];
     let segments = [Segment { residual: &residual, training: 0..6, select: Interleave::default(), heldout: 6..8 }];
-    assert!((robust_sigma(&segments) - 1.4826).abs() < 1e-12);
+    assert_eq!(robust_sigma(&segments), crate::stats::MAD_TO_STD);
     let empty = [Segment { residual: &residual, training: 0..0, select: Interleave::default(), heldout: 0..8 }];
     assert_eq!(robust_sigma(&empty), f64::INFINITY);
 }

@@ -361,7 +361,7 @@ pub fn fit_pressure_model(
     // A dead tap's zero has no noise; the median of the live taps keeps its gate ordinary
     // should it carry data in a later recording (its gain column is zero either way).
     let mut live: Vec<f64> = (0..N_TAPS).filter(|&tap| !dead[tap]).map(|tap| noise_variance[tap]).collect();
-    let typical = median(&mut live);
+    let typical = crate::stats::median_high(&mut live).unwrap_or(MIN_NOISE_VARIANCE);
     for (variance, _) in noise_variance.iter_mut().zip(&dead).filter(|(_, is_dead)| **is_dead) {
         *variance = typical;
     }

@@ -8,6 +8,7 @@ use rayon::prelude::*;
 
 use super::*;
 use crate::fit::dare::solve_filter_dare;
+use crate::stats::{MAD_TO_STD, median_high};
 
 /// Smallest per-tap noise variance (`R` must be positive definite; below a quantisation of
 /// 1e-5 the data carry no information on it anyway).
@@ -15,10 +16,6 @@ pub(super) const MIN_NOISE_VARIANCE: f64 = 1e-12;
 
 /// Variance of the second difference of unit white noise, `1 + 4 + 1`.
 pub(super) const SECOND_DIFFERENCE_GAIN: f64 = 6.0;
-
-/// `1 / Phi^-1(3/4)`: the median absolute deviation of a normal variable times this is its
-/// standard deviation (Hampel, J. Am. Stat. Assoc. 69, 1974).
-pub(super) const MAD_TO_STD: f64 = 1.482_602_218_505_602;
 
 /// Steps the filter needs to settle from its start at the mean pressures (zero modes) before
 /// its innovation gate is armed (`estimator_core::coeffs::PressureModel::settle_steps`).
@@ -82,9 +79,9 @@ pub(super) fn noise_variance(runs: &[PressureRun<'_>]) -> Result<[f64; N_TAPS], 
             });
         }
         let mean_square = differences.iter().map(|d| d * d).sum::<f64>() / differences.len() as f64;
-        let centre = median(&mut differences);
+        let centre = median_high(&mut differences).unwrap_or(0.0);
         let mut deviations: Vec<f64> = differences.iter().map(|d| (d - centre).abs()).collect();
-        let robust = (MAD_TO_STD * median(&mut deviations)).powi(2) / SECOND_DIFFERENCE_GAIN;
+        let robust = (MAD_TO_STD * median_high(&mut deviations).unwrap_or(0.0)).powi(2) / SECOND_DIFFERENCE_GAIN;
         let estimate = if robust > 0.0 { robust } else { mean_square / SECOND_DIFFERENCE_GAIN };
         *out = estimate.max(MIN_NOISE_VARIANCE);
     }
@@ -98,13 +95,6 @@ pub(super) fn dead_taps(runs: &[PressureRun<'_>]) -> [bool; N_TAPS] {
         let finite: usize = runs.iter().map(|run| run.cp[tap].iter().filter(|value| value.is_finite()).count()).sum();
         2 * finite < total
     })
-}
-
-/// The median (upper median for an even count) of a non-empty slice, reordering it.
-pub(super) fn median(values: &mut [f64]) -> f64 {
-    let middle = values.len() / 2;
-    let (_, value, _) = values.select_nth_unstable_by(middle, f64::total_cmp);
-    *value
 }
 
 /// The filter tuned on the training data (steps 6-7).
