@@ -6,7 +6,11 @@
  * Files (semihosting, in QEMU's working folder): firmware-in.bin (input), model.bin (optional:
  * a coefficient blob; without it the built-in tables fly), firmware-out.bin (output).
  * Exit status: 0; a rollest_status code (1..19) when the estimator refuses its storage or the
- * blob; 101..104 for a file that cannot be read or written. */
+ * blob; 101..104 for a file that cannot be read or written; 105 when the library's version is
+ * not this header's (rollest_version() != ROLLEST_VERSION), 106 when its struct sizes are not
+ * (ROLLEST_ABI_OK() fails): a header and a library from different builds.
+ *
+ * Built by the Makefile beside it (`make LIB_DIR=... OUT_DIR=...`). */
 
 #include <stdint.h>
 #include <stdio.h>
@@ -20,6 +24,7 @@ uint32_t stack_size_bytes(void);
 
 enum { HEADER_LEN = 16, INPUT_LEN = 64, OUTPUT_LEN = 80, TRAILER_WORDS = 13, FORMAT_VERSION = 1 };
 enum { EXIT_INPUT = 101, EXIT_OUTPUT = 102, EXIT_MODEL = 103, EXIT_WRITE = 104 };
+enum { EXIT_VERSION = 105, EXIT_ABI = 106 }; /* a header and a library from different builds */
 
 /* SysTick, clocked by the core (168 MHz): counts down from its 24-bit reload. */
 #define SYST_CSR (*(volatile uint32_t *)0xE000E010u)
@@ -74,6 +79,16 @@ static int init_estimator(void) {
 }
 
 int main(void) {
+    /* Before any other call: the library linked in must be the one this header describes. */
+    if (rollest_version() != ROLLEST_VERSION) {
+        printf("library version %lu, header version %d\n", (unsigned long)rollest_version(), ROLLEST_VERSION);
+        return EXIT_VERSION;
+    }
+    if (!ROLLEST_ABI_OK()) {
+        printf("the library's struct sizes are not this header's\n");
+        return EXIT_ABI;
+    }
+
     SYST_RVR = SYST_MASK;
     SYST_CVR = 0;
     SYST_CSR = 0x5; /* enabled, core clock, no exception */

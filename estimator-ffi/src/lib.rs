@@ -8,6 +8,7 @@
 //!
 //! ```c
 //! static rollest_estimator est;                       /* no heap: the caller owns the state */
+//! if (rollest_version() != ROLLEST_VERSION || !ROLLEST_ABI_OK()) { /* header and library differ */ }
 //! rollest_init_built_in(&est, sizeof est);             /* or rollest_init_blob(&est, sizeof est, blob, len) */
 //! for (;;) {                                          /* every 1 / dt_s, from the loop's timer */
 //!     rollest_input in = { phi_deg, alpha_deg, cmu_port, cmu_stbd, { cp01, ..., cp12 } };
@@ -22,10 +23,18 @@
 //! symbol, so a surviving panic path fails the C program's link), and none keeps a pointer
 //! beyond the call except the storage itself. A missing or non-finite input is NaN: held and
 //! flagged, never propagated. The unsafe code of the workspace is here, in [`storage`].
+//!
+//! The doc comments of the exported items are the header's comments, so they speak C: they name
+//! what the header declares (`rollest_estimator`, `ROLLEST_STATUS_MOVED`), and an unsafe
+//! function's `# Safety` section, which clippy requires, states the caller's preconditions
+//! (the header calls it "Preconditions:", see `src/header.rs`). The header's threads and
+//! interrupts section is in `cbindgen.toml`.
 // no_std on the target; the host build links std, whose panic handler aborts at the C boundary
 // (an `extern "C"` function that panics aborts).
 #![cfg_attr(target_os = "none", no_std)]
 
+#[cfg(test)]
+mod header;
 pub mod storage;
 #[cfg(test)]
 mod tests;
@@ -38,15 +47,50 @@ pub use storage::{ROLLEST_ESTIMATOR_WORDS, RollestEstimator};
 use storage::{WithEstimator, fresh, init_built_in, init_loaded, live};
 pub use types::*;
 
-/// The library's version, `major * 10000 + minor * 100 + patch`.
-pub const ROLLEST_VERSION: u32 = 100;
+/// The library's version, `major * 10000 + minor * 100 + patch`, from this crate's version in
+/// Cargo.toml. cbindgen cannot evaluate it, so `cargo xtask header` writes the header's
+/// `ROLLEST_VERSION` from the same version (`src/header.rs`); a test checks they agree.
+pub const ROLLEST_VERSION: u32 =
+    version_number(env!("CARGO_PKG_VERSION_MAJOR"), env!("CARGO_PKG_VERSION_MINOR"), env!("CARGO_PKG_VERSION_PATCH"));
+
+/// `major * 10000 + minor * 100 + patch` of a version's decimal parts; fails the build when minor
+/// or patch would not fit in their two digits.
+const fn version_number(major: &str, minor: &str, patch: &str) -> u32 {
+    const fn parse(digits: &str) -> u32 {
+        match u32::from_str_radix(digits, 10) {
+            Ok(value) => value,
+            Err(_) => panic!("a version part is not a decimal number"),
+        }
+    }
+    let (minor, patch) = (parse(minor), parse(patch));
+    assert!(minor < 100 && patch < 100, "minor and patch versions must be below 100");
+    parse(major) * 10000 + minor * 100 + patch
+}
+
+/// The linked library's version, `major * 10000 + minor * 100 + patch` (0.1.0 is 100). Compare
+/// it at start-up with `ROLLEST_VERSION`, the version of the header the program was compiled
+/// with: a mismatch means a header and a library from different builds.
+#[unsafe(no_mangle)]
+pub extern "C" fn rollest_version() -> u32 {
+    ROLLEST_VERSION
+}
+
+/// The library's size in bytes of the public struct `which` (a `ROLLEST_STRUCT_*` value), or 0
+/// for any other value. `ROLLEST_ABI_OK()` compares each with the program's `sizeof`.
+#[unsafe(no_mangle)]
+pub extern "C" fn rollest_struct_size(which: i32) -> usize {
+    RollestStruct::from_code(which).map_or(0, RollestStruct::size_bytes)
+}
 
 /// Initialises `storage` (of `storage_len` bytes: pass `sizeof(rollest_estimator)`) with the
 /// built-in tables, the fit on the default campaign, whose sparse models run as generated code.
+/// Returns `ROLLEST_STATUS_OK`, or `ROLLEST_STATUS_NULL_POINTER`,
+/// `ROLLEST_STATUS_STORAGE_TOO_SMALL` or `ROLLEST_STATUS_MISALIGNED` for storage it cannot use.
 ///
 /// # Safety
 ///
-/// `storage` is NULL or points to `storage_len` writable bytes.
+/// The caller must pass `storage` as NULL or as a pointer to at least `storage_len` writable
+/// bytes, and no other call on the same storage may run until this one returns.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn rollest_init_built_in(storage: *mut RollestEstimator, storage_len: usize) -> RollestStatus {
     // SAFETY: `storage` as this function's contract states, which is what `fresh` needs.
@@ -62,13 +106,16 @@ pub unsafe extern "C" fn rollest_init_built_in(storage: *mut RollestEstimator, s
 
 /// Initialises `storage` with a coefficient blob (`model.bin` of `host-tools fit`, `blob_len`
 /// bytes at `blob`): decoded and validated, copied into the storage (the blob may be freed
-/// afterwards). A refused blob returns its `ROLLEST_STATUS_BLOB_*` code and leaves the storage
-/// uninitialised.
+/// afterwards). Returns `ROLLEST_STATUS_OK`, the codes of `rollest_init_built_in()`, or for a
+/// refused blob its `ROLLEST_STATUS_BLOB_*` code (`ROLLEST_STATUS_NULL_POINTER` for a NULL
+/// `blob`); storage the library could use is then left holding no estimator, even if it held one
+/// before.
 ///
 /// # Safety
 ///
-/// `storage` is NULL or points to `storage_len` writable bytes; `blob` is NULL or points to
-/// `blob_len` readable bytes.
+/// The caller must pass `storage` as NULL or as a pointer to at least `storage_len` writable
+/// bytes, and `blob` as NULL or as a pointer to `blob_len` readable bytes; no other call on the
+/// same storage may run until this one returns.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn rollest_init_blob(
     storage: *mut RollestEstimator,
@@ -98,11 +145,15 @@ pub unsafe extern "C" fn rollest_init_blob(
 }
 
 /// One fixed step: reads `input`, writes every estimate and the health flags to `output`.
+/// Returns `ROLLEST_STATUS_OK`, or without writing `output`: `ROLLEST_STATUS_NULL_POINTER`,
+/// `ROLLEST_STATUS_MISALIGNED`, `ROLLEST_STATUS_NOT_INITIALISED` or `ROLLEST_STATUS_MOVED`.
 ///
 /// # Safety
 ///
-/// `storage` is NULL or points to a `rollest_estimator`; `input` is NULL or points to a
-/// readable `rollest_input`; `output` is NULL or points to a writable `rollest_output`.
+/// The caller must pass `storage` as NULL or as a pointer to a `rollest_estimator`, `input` as
+/// NULL or as a pointer to a readable `rollest_input`, and `output` as NULL or as a pointer to a
+/// writable `rollest_output`, neither inside the storage; no other call on the same storage may
+/// run until this one returns.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn rollest_step(
     storage: *mut RollestEstimator,
@@ -130,12 +181,15 @@ pub unsafe extern "C" fn rollest_step(
     RollestStatus::Ok
 }
 
-/// Notes the Cmu demand that went to the valves this step (after `rollest_step`): a missing
-/// Cmu measurement is then predicted from it through the fitted actuator response.
+/// Notes the Cmu demand that went to the valves this step (after `rollest_step()`): a missing
+/// Cmu measurement is then predicted from it through the fitted actuator response. Returns
+/// `ROLLEST_STATUS_OK`, or `ROLLEST_STATUS_NULL_POINTER`, `ROLLEST_STATUS_MISALIGNED`,
+/// `ROLLEST_STATUS_NOT_INITIALISED` or `ROLLEST_STATUS_MOVED` for storage it cannot use.
 ///
 /// # Safety
 ///
-/// `storage` is NULL or points to a `rollest_estimator`.
+/// The caller must pass `storage` as NULL or as a pointer to a `rollest_estimator`, and no
+/// other call on the same storage may run until this one returns.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn rollest_note_demand(
     storage: *mut RollestEstimator,
@@ -152,11 +206,14 @@ pub unsafe extern "C" fn rollest_note_demand(
     }
 }
 
-/// Returns the estimator to its state after initialisation, with the same tables.
+/// Returns the estimator to its state after initialisation, with the same tables. Returns
+/// `ROLLEST_STATUS_OK`, or `ROLLEST_STATUS_NULL_POINTER`, `ROLLEST_STATUS_MISALIGNED`,
+/// `ROLLEST_STATUS_NOT_INITIALISED` or `ROLLEST_STATUS_MOVED` for storage it cannot use.
 ///
 /// # Safety
 ///
-/// `storage` is NULL or points to a `rollest_estimator`.
+/// The caller must pass `storage` as NULL or as a pointer to a `rollest_estimator`, and no
+/// other call on the same storage may run until this one returns.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn rollest_reset(storage: *mut RollestEstimator) -> RollestStatus {
     // SAFETY: `storage` as this function's contract states, which is what `live` needs.
@@ -169,12 +226,16 @@ pub unsafe extern "C" fn rollest_reset(storage: *mut RollestEstimator) -> Rolles
     }
 }
 
-/// Writes the tables' fixed step, s, to `dt_s`: call `rollest_step` at `1 / dt_s` Hz.
+/// Writes the tables' fixed step, s, to `dt_s`: call `rollest_step()` at `1 / dt_s` Hz.
+/// Returns `ROLLEST_STATUS_OK`, or `ROLLEST_STATUS_NULL_POINTER`, `ROLLEST_STATUS_MISALIGNED`,
+/// `ROLLEST_STATUS_NOT_INITIALISED` or `ROLLEST_STATUS_MOVED` for storage it cannot use (and
+/// the first for a NULL `dt_s`); `dt_s` is written only with `ROLLEST_STATUS_OK`.
 ///
 /// # Safety
 ///
-/// `storage` is NULL or points to a `rollest_estimator`; `dt_s` is NULL or points to a
-/// writable float.
+/// The caller must pass `storage` as NULL or as a pointer to a `rollest_estimator`, and `dt_s`
+/// as NULL or as a pointer to a writable `float` outside the storage; no other call on the same
+/// storage may run until this one returns.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn rollest_dt_s(storage: *mut RollestEstimator, dt_s: *mut f32) -> RollestStatus {
     if dt_s.is_null() {
@@ -192,6 +253,7 @@ pub unsafe extern "C" fn rollest_dt_s(storage: *mut RollestEstimator, dt_s: *mut
 }
 
 /// A static, NUL-terminated description of a status code (any integer; unknown codes say so).
+/// Never NULL; the caller must not free or modify it.
 #[unsafe(no_mangle)]
 pub extern "C" fn rollest_status_text(status: i32) -> *const c_char {
     RollestStatus::text_of(status).as_ptr()

@@ -16,20 +16,22 @@ use estimator_core::{CoefficientSet, Estimator};
 
 use crate::types::RollestStatus;
 
-/// Words (8 bytes each) of `rollest_estimator`: 8 KiB, what one estimator with its own tables
-/// (4.3 KiB on a 64-bit host) needs with room for the tables to grow (a compile-time check keeps
-/// it large enough).
+/// Size of `rollest_estimator` in 8-byte words: 8 KiB, which holds one estimator with its own
+/// tables (4.3 KiB on a 64-bit host) and leaves room for the tables to grow (the library checks
+/// at compile time that they fit).
 pub const ROLLEST_ESTIMATOR_WORDS: usize = 1024;
 
-/// Storage for one estimator, owned by the caller (a `static`, or a member of the caller's
-/// state); initialise it with `rollest_init_built_in` or `rollest_init_blob` and do not copy or
-/// move it afterwards.
-///
-/// `Clone` is the bitwise copy C makes by assignment or `memcpy`: the copy is refused by every
-/// call ([`RollestStatus::Moved`]), the original stays usable.
+/// Storage for one estimator, owned by the caller: a `static`, or a member of the caller's
+/// state (the library allocates nothing). Initialise it with `rollest_init_built_in()` or
+/// `rollest_init_blob()`, then do not copy or move it: the estimator refers into its own storage,
+/// so a copy made by assignment or `memcpy()` gets `ROLLEST_STATUS_MOVED` from every call, and
+/// the original stays usable.
+// `Clone` is that bitwise copy, for Rust callers and the test that a copy is refused.
 #[repr(C)]
 #[derive(Clone)]
 pub struct RollestEstimator {
+    /// Private to the library: written only by the `rollest_*` functions (a program that writes
+    /// into initialised storage breaks the estimator it holds).
     _opaque: [u64; ROLLEST_ESTIMATOR_WORDS],
 }
 

@@ -1,6 +1,7 @@
-//! The C interface from Rust: the committed header is cbindgen's output, the library's
-//! estimates are the core's bit for bit (built-in tables and a loaded blob), and every bad
-//! pointer, storage or blob gets its documented code.
+//! The C interface from Rust: the committed header is what `cargo xtask header` generates, with
+//! the crate's version; the library's estimates are the core's bit for bit (built-in tables and
+//! a loaded blob); every bad pointer, storage or blob gets its documented code; and the library
+//! reports its version and struct sizes for the program's start-up check.
 
 extern crate std;
 
@@ -121,14 +122,51 @@ fn assert_bit_identical(est: &mut RollestEstimator, rust: &mut Estimator<'_, imp
     }
 }
 
+fn committed_header() -> std::string::String {
+    std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("include/roll_estimator.h"))
+        .expect("the committed header")
+}
+
 #[test]
 fn the_committed_header_is_what_cbindgen_generates() {
-    let crate_dir = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let bindings = cbindgen::generate(crate_dir).expect("cbindgen parses estimator-ffi");
-    let mut text = Vec::new();
-    bindings.write(&mut text);
-    let committed = std::fs::read(crate_dir.join("include/roll_estimator.h")).expect("the committed header");
-    assert!(committed == text, "estimator-ffi/include/roll_estimator.h is stale: run `cargo xtask header`");
+    let text = crate::header::generate(Path::new(env!("CARGO_MANIFEST_DIR"))).expect("generates the header");
+    assert!(
+        committed_header().as_bytes() == text,
+        "estimator-ffi/include/roll_estimator.h is stale: run `cargo xtask header`"
+    );
+}
+
+#[test]
+fn the_headers_version_and_the_librarys_are_the_crates() {
+    // Computed here from the whole version string, apart from the const fn that reads its parts.
+    let parts: Vec<u32> = env!("CARGO_PKG_VERSION")
+        .split(['-', '+'])
+        .next()
+        .expect("a version")
+        .split('.')
+        .map(|part| part.parse().expect("a decimal version part"))
+        .collect();
+    let expected = parts[0] * 10000 + parts[1] * 100 + parts[2];
+    let header = committed_header();
+    let define = header
+        .lines()
+        .find_map(|line| line.strip_prefix("#define ROLLEST_VERSION "))
+        .expect("the header defines ROLLEST_VERSION");
+    assert_eq!(define.parse::<u32>(), Ok(expected), "the header's ROLLEST_VERSION: run `cargo xtask header`");
+    assert_eq!(rollest_version(), expected);
+    assert_eq!(ROLLEST_VERSION, expected);
+}
+
+#[test]
+fn the_library_reports_the_size_of_every_public_struct() {
+    assert_eq!(rollest_struct_size(RollestStruct::Estimator as i32), size_of::<RollestEstimator>());
+    assert_eq!(rollest_struct_size(RollestStruct::Input as i32), size_of::<RollestInput>());
+    assert_eq!(rollest_struct_size(RollestStruct::Output as i32), size_of::<RollestOutput>());
+    assert_eq!(rollest_struct_size(RollestStruct::Health as i32), size_of::<RollestHealth>());
+    // Any other integer C passes is no struct.
+    for unknown in [-1, 4, i32::MAX, i32::MIN] {
+        assert_eq!(rollest_struct_size(unknown), 0, "code {unknown}");
+    }
 }
 
 #[test]

@@ -1,8 +1,15 @@
 //! The C structs and codes of the interface: plain `#[repr(C)]` data, converted to and from the
 //! core's types field by field (the core's own types stay free to change their layout).
+//!
+//! Their doc comments are the header's: they name what C sees (`rollest_input`,
+//! `ROLLEST_STATUS_MOVED`), not the Rust items.
+
+use core::mem::size_of;
 
 use estimator_core::blob::DecodeError;
 use estimator_core::{Health, Input, Output};
+
+use crate::storage::RollestEstimator;
 
 /// Pressure taps per sample.
 pub const ROLLEST_N_TAPS: usize = 12;
@@ -40,7 +47,8 @@ pub struct RollestInput {
     pub cmu_port: f32,
     /// Momentum coefficient of the starboard jet.
     pub cmu_stbd: f32,
-    /// Pressure coefficients `cp01`..`cp12`.
+    /// Pressure coefficients of taps 1 to 12: `cp[k]` is tap `k + 1` (`cp01` to `cp12` in the
+    /// dataset's files).
     pub cp: [f32; ROLLEST_N_TAPS],
 }
 
@@ -57,7 +65,7 @@ impl From<&RollestInput> for Input {
 }
 
 /// What was missing, rejected, held or reset in one step (`ROLLEST_HEALTH_*` bits in `flags`;
-/// bit `k` of a channel mask is pressure tap `k + 1`).
+/// bit `k`, `1 << k`, of a channel mask is pressure tap `k + 1`, the input's `cp[k]`).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct RollestHealth {
@@ -122,8 +130,9 @@ pub const ROLLEST_HEALTH_CMU_FROM_DEMAND: u16 = 1 << 9;
 /// The pressure filter is settling from its start.
 pub const ROLLEST_HEALTH_PRESSURE_SETTLING: u16 = 1 << 10;
 
-/// The result of every call: 0 is success. The blob codes (10 and up) name why a blob was
-/// refused, one code per check of `estimator_core::blob::decode`.
+/// The result of every call that takes an estimator: `ROLLEST_STATUS_OK` (0) is success. The
+/// blob codes (10 and up) name why `rollest_init_blob()` refused a blob, one code per check a
+/// blob must pass. `rollest_status_text()` describes any code.
 #[repr(i32)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum RollestStatus {
@@ -233,6 +242,44 @@ impl From<&DecodeError> for RollestStatus {
             DecodeError::Decode(_) => Self::BlobDecode,
             DecodeError::TrailingPayload { .. } => Self::BlobTrailingPayload,
             DecodeError::Invalid(_) => Self::BlobInvalidSet,
+        }
+    }
+}
+
+/// The public structs, named for `rollest_struct_size()`: the library's `sizeof` of each, which
+/// `ROLLEST_ABI_OK()` compares with the program's.
+#[repr(i32)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RollestStruct {
+    /// `rollest_estimator`.
+    Estimator = 0,
+    /// `rollest_input`.
+    Input = 1,
+    /// `rollest_output`.
+    Output = 2,
+    /// `rollest_health`.
+    Health = 3,
+}
+
+/// Every struct code, in order (not exported to C: the enum is the list there).
+pub(crate) const ALL_STRUCTS: [RollestStruct; 4] =
+    [RollestStruct::Estimator, RollestStruct::Input, RollestStruct::Output, RollestStruct::Health];
+
+impl RollestStruct {
+    /// The struct of `code`, if it is one (C may pass any integer).
+    #[must_use]
+    pub fn from_code(code: i32) -> Option<Self> {
+        ALL_STRUCTS.iter().copied().find(|known| *known as i32 == code)
+    }
+
+    /// The struct's size in this library, bytes (`rollest_struct_size`).
+    #[must_use]
+    pub const fn size_bytes(self) -> usize {
+        match self {
+            Self::Estimator => size_of::<RollestEstimator>(),
+            Self::Input => size_of::<RollestInput>(),
+            Self::Output => size_of::<RollestOutput>(),
+            Self::Health => size_of::<RollestHealth>(),
         }
     }
 }

@@ -1,10 +1,11 @@
 //! The C example (`estimator-ffi/c-example`): the estimator's C interface flown by a C program
 //! on the STM32F405 under QEMU. The static library is built for the Cortex-M4F with the
-//! firmware profile (fat LTO), the program is compiled and linked with Debian's
-//! `arm-none-eabi-gcc` and newlib's semihosting I/O (`rdimon`), and it reads and writes the same
-//! files as the Rust firmware, so [`super::qemu_replay`] compares it with the host replay the
-//! same way.
+//! firmware profile (fat LTO), the program is compiled and linked by the example's Makefile with
+//! Debian's `arm-none-eabi-gcc` and newlib's semihosting I/O (`rdimon`), and it reads and writes
+//! the same files as the Rust firmware, so [`super::qemu_replay`] compares it with the host
+//! replay the same way.
 
+use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -12,19 +13,20 @@ use anyhow::{Context, bail};
 
 use super::{TARGET, workspace_root};
 
-/// The C compiler (Debian's `gcc-arm-none-eabi`, installed by `./ci.sh setup`).
+/// The C compiler (Debian's `gcc-arm-none-eabi`, installed by `./ci.sh setup`), passed to the
+/// Makefile as `CC`.
 pub const CC: &str = "arm-none-eabi-gcc";
+
+/// GNU make, which runs `estimator-ffi/c-example/Makefile`.
+const MAKE: &str = "make";
 
 /// The blob the C example loads when it finds it in its working folder (else the built-in
 /// tables fly).
 pub const MODEL_FILE: &str = "model.bin";
 
-/// Flags of the Cortex-M4F with its single-precision FPU, hard-float ABI (the library's target,
-/// `thumbv7em-none-eabihf`).
-const CPU_FLAGS: [&str; 4] = ["-mcpu=cortex-m4", "-mthumb", "-mfloat-abi=hard", "-mfpu=fpv4-sp-d16"];
-
-/// Builds `libroll_estimator.a` for the Cortex-M4F and links the C example against it; returns
-/// the ELF. Everything goes to `target/c-example`, apart from the workspace's target folder.
+/// Builds `libroll_estimator.a` for the Cortex-M4F and links the C example against it with its
+/// Makefile (which holds the compiler's flags); returns the ELF. Everything goes to
+/// `target/c-example`, apart from the workspace's target folder.
 pub fn build_c_example() -> anyhow::Result<PathBuf> {
     let root = workspace_root();
     let target_dir = root.join("target").join("c-example");
@@ -39,34 +41,49 @@ pub fn build_c_example() -> anyhow::Result<PathBuf> {
         bail!("building libroll_estimator.a failed ({status})");
     }
     let sources = root.join("estimator-ffi").join("c-example");
-    let elf = target_dir.join("replay.elf");
-    let output = Command::new(CC)
-        .args(CPU_FLAGS)
-        .args(["-O2", "-std=c11", "-Wall", "-Wextra", "-Werror", "-ffunction-sections", "-fdata-sections", "-I"])
-        .arg(root.join("estimator-ffi").join("include"))
-        .arg(sources.join("replay.c"))
-        .arg(sources.join("startup.c"))
-        .arg("-T")
-        .arg(sources.join("stm32f405.ld"))
-        // newlib's file I/O over semihosting; our own reset instead of its crt0.
-        .args(["--specs=rdimon.specs", "-nostartfiles", "-Wl,--gc-sections", "-Wl,--no-warn-execstack", "-L"])
-        .arg(target_dir.join(TARGET).join("firmware"))
-        .args(["-lroll_estimator", "-lm", "-o"])
-        .arg(&elf)
+    // make would report a missing compiler only as a failed recipe.
+    Command::new(CC)
+        .arg("--version")
         .output()
         .map_err(|error| {
             anyhow::anyhow!(
                 "cannot run {CC} ({error}): install it (`apt-get install gcc-arm-none-eabi libnewlib-arm-none-eabi`, or `./ci.sh setup`)"
             )
         })?;
+    let output = Command::new(MAKE)
+        .arg("-C")
+        .arg(&sources)
+        .arg(format!("CC={CC}"))
+        .arg(make_variable("LIB_DIR", &target_dir.join(TARGET).join("firmware"))?)
+        .arg(make_variable("INCLUDE_DIR", &root.join("estimator-ffi").join("include"))?)
+        .arg(make_variable("OUT_DIR", &target_dir)?)
+        .output()
+        .map_err(|error| anyhow::anyhow!("cannot run {MAKE} ({error}): install it (`apt-get install make`)"))?;
     if !output.status.success() {
-        bail!("compiling the C example failed:\n{}", String::from_utf8_lossy(&output.stderr));
+        bail!(
+            "building the C example with {} failed:\n{}{}",
+            sources.join("Makefile").display(),
+            String::from_utf8_lossy(&output.stdout),
+            String::from_utf8_lossy(&output.stderr)
+        );
     }
-    Ok(elf)
+    Ok(target_dir.join("replay.elf"))
+}
+
+/// `NAME=value` for make's command line, which overrides the Makefile's own value; make splits a
+/// value at blanks, so a folder with one is refused here rather than misread there.
+fn make_variable(name: &str, value: &Path) -> anyhow::Result<OsString> {
+    if value.to_string_lossy().contains(char::is_whitespace) {
+        bail!("make cannot build the C example in {}: the path has a blank", value.display());
+    }
+    let mut variable = OsString::from(format!("{name}="));
+    variable.push(value);
+    Ok(variable)
 }
 
 /// Runs the C example in `dir` (with its input file, and `blob` as [`MODEL_FILE`] if given) and
-/// returns its exit status: 0, a `rollest_status` code, or its I/O failures (101 to 104).
+/// returns its exit status: 0, a `rollest_status` code, its I/O failures (101 to 104), or a
+/// library that is not its header's (105: version, 106: struct sizes).
 pub fn exit_status(elf: &Path, dir: &Path, blob: Option<&[u8]>) -> anyhow::Result<i32> {
     place_blob(dir, blob)?;
     let status = Command::new(super::QEMU)
