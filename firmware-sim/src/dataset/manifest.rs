@@ -3,6 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
+use serde::Deserialize;
 use toml::{Table, Value};
 
 use super::{Dataset, DatasetError, FORMAT, RunKind, RunMeta, Tunnel, Wing};
@@ -72,14 +73,79 @@ pub(super) fn run_key(run_index: usize, key: &str) -> String {
     format!("run[{run_index}].{key}")
 }
 
-/// Parses the text of the manifest `file`.
+/// The manifest's format keys as serde reads them, each with its type; other keys are ignored
+/// here and kept from the parsed table (the extra keys). Absent keys are `None` here and become
+/// [`DatasetError::MissingKey`] or the paper's value after reading; numbers are checked against
+/// their [`Rule`] after reading too. No `#[serde(flatten)]`: it would read the fields through a
+/// buffer that `serde_path_to_error` cannot see into, and a wrong value would lose its key.
+#[derive(Debug, Deserialize)]
+struct RawManifest {
+    tunnel: Option<RawTunnel>,
+    wing: Option<RawWing>,
+    run: Option<Vec<RawRun>>,
+}
+
+#[derive(Debug, Deserialize)]
+struct RawTunnel {
+    u_inf_mps: Option<Number>,
+    rho_kgm3: Option<Number>,
+}
+
+#[derive(Debug, Deserialize)]
+struct RawWing {
+    chord_m: Option<Number>,
+    span_m: Option<Number>,
+    area_m2: Option<Number>,
+    ixx_kgm2: Option<Number>,
+    mass_kg: Option<Number>,
+}
+
+#[derive(Debug, Deserialize)]
+struct RawRun {
+    file: Option<String>,
+    kind: Option<String>,
+    alpha_deg: Option<Number>,
+    sample_hz: Option<Number>,
+}
+
+/// A TOML number, integer or float (the format accepts both wherever it asks for a number).
+#[derive(Debug, Clone, Copy)]
+struct Number(f64);
+
+impl<'de> Deserialize<'de> for Number {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct Visitor;
+        impl serde::de::Visitor<'_> for Visitor {
+            type Value = Number;
+            fn expecting(&self, formatter: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                formatter.write_str("a number")
+            }
+            fn visit_f64<E>(self, value: f64) -> Result<Number, E> {
+                Ok(Number(value))
+            }
+            #[allow(clippy::cast_precision_loss, reason = "manifest integers are small")]
+            fn visit_i64<E>(self, value: i64) -> Result<Number, E> {
+                Ok(Number(value as f64))
+            }
+            #[allow(clippy::cast_precision_loss, reason = "manifest integers are small")]
+            fn visit_u64<E>(self, value: u64) -> Result<Number, E> {
+                Ok(Number(value as f64))
+            }
+        }
+        deserializer.deserialize_any(Visitor)
+    }
+}
+
+/// Parses the text of the manifest `file`: TOML syntax first (the line of an error), then the
+/// format string, then the format's keys through serde, whose path names the key of a value of
+/// the wrong type (`serde_path_to_error`), then each number's range.
 ///
 /// # Errors
 /// Syntax errors, a wrong or missing format string, missing or ill-typed keys, out-of-range
 /// numbers, unknown run kinds, and a manifest without runs.
 pub(super) fn parse_manifest(file: &Path, text: &str) -> Result<Manifest, DatasetError> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
-    let mut top: Table = text.parse().map_err(|err: toml::de::Error| {
+    let top: Table = text.parse().map_err(|err: toml::de::Error| {
         let line = err.span().map_or(1, |span| line_of(text, span.start));
         DatasetError::ManifestSyntax {
             file: file.to_path_buf(),
@@ -88,11 +154,128 @@ pub(super) fn parse_manifest(file: &Path, text: &str) -> Result<Manifest, Datase
         }
     })?;
     check_format(file, top.get("format"))?;
-    let tunnel = parse_tunnel(file, top.get("tunnel"))?;
-    let wing = parse_wing(file, top.get("wing"))?;
-    let runs = parse_runs(file, top.get("run"))?;
-    top.retain(|key, _| !TOP_KEYS.contains(&key));
-    Ok(Manifest { tunnel, wing, extra: top, runs })
+    let raw: RawManifest = serde_path_to_error::deserialize(Value::Table(top.clone()))
+        .map_err(|err| type_error(file, &top, err.path()))?;
+    let missing = |key: &str| DatasetError::MissingKey { file: file.to_path_buf(), key: key.to_owned() };
+    let checked = |key: &str, value: Option<Number>, rule: Rule| -> Result<Option<f64>, DatasetError> {
+        value.map(|Number(value)| check_number(file, key, value, rule)).transpose()
+    };
+    let tunnel = raw.tunnel.ok_or_else(|| missing("tunnel"))?;
+    let tunnel = Tunnel {
+        u_inf_mps: checked("tunnel.u_inf_mps", tunnel.u_inf_mps, Rule::Positive)?
+            .ok_or_else(|| missing("tunnel.u_inf_mps"))?,
+        rho_kgm3: checked("tunnel.rho_kgm3", tunnel.rho_kgm3, Rule::Positive)?
+            .ok_or_else(|| missing("tunnel.rho_kgm3"))?,
+    };
+    let wing = match raw.wing {
+        None => Wing::PAPER,
+        Some(wing) => {
+            let paper = Wing::PAPER;
+            let get = |name: &str, value: Option<Number>, default: f64| {
+                Ok::<_, DatasetError>(checked(&format!("wing.{name}"), value, Rule::Positive)?.unwrap_or(default))
+            };
+            Wing {
+                chord_m: get("chord_m", wing.chord_m, paper.chord_m)?,
+                span_m: get("span_m", wing.span_m, paper.span_m)?,
+                area_m2: get("area_m2", wing.area_m2, paper.area_m2)?,
+                ixx_kgm2: get("ixx_kgm2", wing.ixx_kgm2, paper.ixx_kgm2)?,
+                mass_kg: get("mass_kg", wing.mass_kg, paper.mass_kg)?,
+            }
+        }
+    };
+    let runs =
+        raw.run.filter(|runs| !runs.is_empty()).ok_or_else(|| DatasetError::NoRuns { file: file.to_path_buf() })?;
+    let tables = top.get("run").and_then(Value::as_array).map_or(&[][..], Vec::as_slice);
+    let runs = runs
+        .into_iter()
+        .zip(tables)
+        .enumerate()
+        .map(|(index, (run, table))| run_meta(file, index + 1, run, extra_keys(table, &RUN_KEYS)))
+        .collect::<Result<_, _>>()?;
+    let extra = extra_keys(&Value::Table(top), &TOP_KEYS);
+    Ok(Manifest { tunnel, wing, extra, runs })
+}
+
+/// The keys of `table` other than the format's `keys`.
+fn extra_keys(table: &Value, keys: &[&str]) -> Table {
+    let mut extra = table.as_table().cloned().unwrap_or_default();
+    extra.retain(|key, _| !keys.contains(&key));
+    extra
+}
+
+/// The `run_index`-th (1-based) `[[run]]` table, checked.
+fn run_meta(file: &Path, run_index: usize, run: RawRun, extra: Table) -> Result<RunMeta, DatasetError> {
+    let key = |name: &str| run_key(run_index, name);
+    let missing = |name: &str| DatasetError::MissingKey { file: file.to_path_buf(), key: key(name) };
+    let run_file = run.file.ok_or_else(|| missing("file"))?;
+    if run_file.trim().is_empty() {
+        return Err(DatasetError::BadValue {
+            file: file.to_path_buf(),
+            key: key("file"),
+            expected: "a path relative to the manifest",
+            found: Value::String(run_file).to_string(),
+        });
+    }
+    let kind_text = run.kind.ok_or_else(|| missing("kind"))?;
+    let kind = RunKind::parse(&kind_text).ok_or_else(|| DatasetError::UnknownKind {
+        file: file.to_path_buf(),
+        run_index,
+        found: kind_text.clone(),
+    })?;
+    let number = |name: &str, value: Option<Number>, rule: Rule| {
+        let Number(value) = value.ok_or_else(|| missing(name))?;
+        check_number(file, &key(name), value, rule)
+    };
+    Ok(RunMeta {
+        file: PathBuf::from(run_file),
+        kind,
+        alpha_deg: number("alpha_deg", run.alpha_deg, Rule::Finite)?,
+        sample_hz: number("sample_hz", run.sample_hz, Rule::Positive)?,
+        extra,
+    })
+}
+
+/// The error for a value of the wrong type at serde's `path`: the key as the format names it
+/// (`run[N].key`, `N` 1-based), what the key must hold, and the value as written.
+fn type_error(file: &Path, top: &Table, path: &serde_path_to_error::Path) -> DatasetError {
+    use serde_path_to_error::Segment;
+    let mut key = String::new();
+    let mut value: Option<&Value> = None;
+    let mut in_run = false;
+    for segment in path.iter() {
+        match segment {
+            Segment::Seq { index } => {
+                key.push_str(&format!("[{}]", index + 1));
+                value = value.and_then(|v| v.as_array()).and_then(|items| items.get(*index));
+            }
+            Segment::Map { key: name } | Segment::Enum { variant: name } => {
+                if !key.is_empty() {
+                    key.push('.');
+                }
+                key.push_str(name);
+                value = match value {
+                    None if key == *name => top.get(name),
+                    Some(Value::Table(table)) => table.get(name),
+                    _ => None,
+                };
+                in_run |= name == "run";
+            }
+            Segment::Unknown => {}
+        }
+    }
+    let name = key.rsplit(['.', '[']).next().unwrap_or_default();
+    let expected = match name {
+        "tunnel" | "wing" => "a table",
+        "run" => "an array of [[run]] tables",
+        _ if key.ends_with(']') => "a [[run]] table",
+        "file" | "kind" if in_run => "a string",
+        "u_inf_mps" | "rho_kgm3" | "sample_hz" => Rule::Positive.expected(),
+        "alpha_deg" => Rule::Finite.expected(),
+        _ if key.starts_with("wing.") => Rule::Positive.expected(),
+        _ => "a value of the format's type",
+    };
+    let found = value.map_or_else(|| "a value of another type".to_owned(), Value::to_string);
+    DatasetError::BadValue { file: file.to_path_buf(), key, expected, found }
 }
 
 /// The 1-based line of byte offset `offset` in `text`.
@@ -107,148 +290,6 @@ fn check_format(file: &Path, value: Option<&Value>) -> Result<(), DatasetError> 
         None => Err(DatasetError::MissingKey { file: file.to_path_buf(), key: "format".into() }),
         Some(Value::String(text)) if text == FORMAT => Ok(()),
         Some(other) => Err(DatasetError::WrongFormat { file: file.to_path_buf(), found: other.to_string() }),
-    }
-}
-
-/// The table at `key`, or `None` when absent; an error when present but not a table.
-fn section<'a>(file: &Path, key: &str, value: Option<&'a Value>) -> Result<Option<&'a Table>, DatasetError> {
-    match value {
-        None => Ok(None),
-        Some(Value::Table(table)) => Ok(Some(table)),
-        Some(other) => Err(DatasetError::BadValue {
-            file: file.to_path_buf(),
-            key: key.to_owned(),
-            expected: "a table",
-            found: other.to_string(),
-        }),
-    }
-}
-
-/// The number at `table[name]` (integers accepted), checked against `rule`; `None` when absent.
-/// `key` is the full key for error messages.
-fn number(file: &Path, table: &Table, name: &str, key: &str, rule: Rule) -> Result<Option<f64>, DatasetError> {
-    let value = match table.get(name) {
-        None => return Ok(None),
-        Some(Value::Float(value)) => *value,
-        #[allow(clippy::cast_precision_loss, reason = "manifest integers are small")]
-        Some(Value::Integer(value)) => *value as f64,
-        Some(other) => {
-            return Err(DatasetError::BadValue {
-                file: file.to_path_buf(),
-                key: key.to_owned(),
-                expected: rule.expected(),
-                found: other.to_string(),
-            });
-        }
-    };
-    check_number(file, key, value, rule).map(Some)
-}
-
-/// Like [`number`], but an absent key is a [`DatasetError::MissingKey`].
-fn required(file: &Path, table: &Table, name: &str, key: &str, rule: Rule) -> Result<f64, DatasetError> {
-    number(file, table, name, key, rule)?
-        .ok_or_else(|| DatasetError::MissingKey { file: file.to_path_buf(), key: key.to_owned() })
-}
-
-/// Parses the required `[tunnel]` table.
-fn parse_tunnel(file: &Path, value: Option<&Value>) -> Result<Tunnel, DatasetError> {
-    let table = section(file, "tunnel", value)?
-        .ok_or_else(|| DatasetError::MissingKey { file: file.to_path_buf(), key: "tunnel".into() })?;
-    Ok(Tunnel {
-        u_inf_mps: required(file, table, "u_inf_mps", "tunnel.u_inf_mps", Rule::Positive)?,
-        rho_kgm3: required(file, table, "rho_kgm3", "tunnel.rho_kgm3", Rule::Positive)?,
-    })
-}
-
-/// Parses the optional `[wing]` table; absent keys take the paper's values.
-fn parse_wing(file: &Path, value: Option<&Value>) -> Result<Wing, DatasetError> {
-    let Some(table) = section(file, "wing", value)? else {
-        return Ok(Wing::PAPER);
-    };
-    let get = |name: &str, default: f64| -> Result<f64, DatasetError> {
-        let key = format!("wing.{name}");
-        Ok(number(file, table, name, &key, Rule::Positive)?.unwrap_or(default))
-    };
-    let paper = Wing::PAPER;
-    Ok(Wing {
-        chord_m: get("chord_m", paper.chord_m)?,
-        span_m: get("span_m", paper.span_m)?,
-        area_m2: get("area_m2", paper.area_m2)?,
-        ixx_kgm2: get("ixx_kgm2", paper.ixx_kgm2)?,
-        mass_kg: get("mass_kg", paper.mass_kg)?,
-    })
-}
-
-/// Parses the `[[run]]` array: at least one table.
-fn parse_runs(file: &Path, value: Option<&Value>) -> Result<Vec<RunMeta>, DatasetError> {
-    let items = match value {
-        None => {
-            return Err(DatasetError::NoRuns { file: file.to_path_buf() });
-        }
-        Some(Value::Array(items)) => items,
-        Some(other) => {
-            return Err(DatasetError::BadValue {
-                file: file.to_path_buf(),
-                key: "run".into(),
-                expected: "an array of [[run]] tables",
-                found: other.to_string(),
-            });
-        }
-    };
-    if items.is_empty() {
-        return Err(DatasetError::NoRuns { file: file.to_path_buf() });
-    }
-    items.iter().enumerate().map(|(index, item)| parse_run(file, index + 1, item)).collect()
-}
-
-/// Parses the `run_index`-th (1-based) `[[run]]` table.
-fn parse_run(file: &Path, run_index: usize, item: &Value) -> Result<RunMeta, DatasetError> {
-    let key = |name: &str| run_key(run_index, name);
-    let Value::Table(table) = item else {
-        return Err(DatasetError::BadValue {
-            file: file.to_path_buf(),
-            key: format!("run[{run_index}]"),
-            expected: "a [[run]] table",
-            found: item.to_string(),
-        });
-    };
-    let run_file = string(file, table, "file", &key("file"))?;
-    if run_file.trim().is_empty() {
-        return Err(DatasetError::BadValue {
-            file: file.to_path_buf(),
-            key: key("file"),
-            expected: "a path relative to the manifest",
-            found: Value::String(run_file.to_owned()).to_string(),
-        });
-    }
-    let kind_text = string(file, table, "kind", &key("kind"))?;
-    let kind = RunKind::parse(kind_text).ok_or_else(|| DatasetError::UnknownKind {
-        file: file.to_path_buf(),
-        run_index,
-        found: kind_text.to_owned(),
-    })?;
-    let mut extra = table.clone();
-    extra.retain(|name, _| !RUN_KEYS.contains(&name));
-    Ok(RunMeta {
-        file: PathBuf::from(run_file),
-        kind,
-        alpha_deg: required(file, table, "alpha_deg", &key("alpha_deg"), Rule::Finite)?,
-        sample_hz: required(file, table, "sample_hz", &key("sample_hz"), Rule::Positive)?,
-        extra,
-    })
-}
-
-/// The required string at `table[name]`.
-fn string<'a>(file: &Path, table: &'a Table, name: &str, key: &str) -> Result<&'a str, DatasetError> {
-    match table.get(name) {
-        None => Err(DatasetError::MissingKey { file: file.to_path_buf(), key: key.to_owned() }),
-        Some(Value::String(text)) => Ok(text),
-        Some(other) => Err(DatasetError::BadValue {
-            file: file.to_path_buf(),
-            key: key.to_owned(),
-            expected: "a string",
-            found: other.to_string(),
-        }),
     }
 }
 
@@ -376,6 +417,39 @@ kind = "roll"
 alpha_deg = 10
 sample_hz = 1000.0
 "#;
+
+    /// A value of the wrong type is named by its key as the format writes it (`run[N]`
+    /// 1-based), with what the key must hold and the value as written.
+    #[test]
+    fn a_value_of_the_wrong_type_is_named_by_its_key() {
+        let cases = [
+            (
+                MINIMAL.replace("rho_kgm3 = 1.2", "rho_kgm3 = \"dense\""),
+                "key tunnel.rho_kgm3: expected a finite number greater than zero, found \"dense\"",
+            ),
+            (
+                MINIMAL.replace("[tunnel]\nu_inf_mps = 6.5\nrho_kgm3 = 1.2\n", "tunnel = 5\n"),
+                "key tunnel: expected a table, found 5",
+            ),
+            (
+                MINIMAL.replace("[[run]]", "[wing]\nspan_m = [1]\n[[run]]"),
+                "key wing.span_m: expected a finite number greater than zero, found [1]",
+            ),
+            (
+                format!("{MINIMAL}[[run]]\nfile = 7\nkind = \"roll\"\nalpha_deg = 0\nsample_hz = 1000\n"),
+                "key run[2].file: expected a string, found 7",
+            ),
+            (
+                MINIMAL.replace("sample_hz = 1000.0", "sample_hz = true"),
+                "key run[1].sample_hz: expected a finite number greater than zero, found true",
+            ),
+        ];
+        for (text, expected) in cases {
+            assert_eq!(message(&text), format!("{FILE}: {expected}"));
+        }
+        let runs = MINIMAL.split("[[run]]").next().unwrap().replace("[tunnel]", "run = 3\n[tunnel]");
+        assert_eq!(message(&runs), format!("{FILE}: key run: expected an array of [[run]] tables, found 3"));
+    }
 
     #[test]
     fn minimal_manifest_defaults_wing_and_accepts_integers() {
