@@ -1,6 +1,6 @@
 //! What a sensor check reports: a finding on one, some or all pressure channels, its
 //! parameters and its strength. The innovation checks ([`super::sensor`]) and the balance
-//! alignment ([`super::pressure_lag`]) both produce it, so it lives apart from either.
+//! alignment (the `pressure_lag` module) both produce it, so it lives apart from either.
 
 use firmware_sim::effect::Effect;
 
