@@ -74,3 +74,117 @@ fn every_contract_a_file_names_is_in_docs_spec() {
     }
     assert!(broken.is_empty(), "contracts named but not in the tree:\n{}", broken.join("\n"));
 }
+
+/// The code of the Rust files of module `module` under `dir` (its file, or its folder and its
+/// files below), test code left out: files named `tests.rs`, and each item marked
+/// `#[cfg(test)]`. Comment lines are dropped.
+fn module_code(dir: &Path, module: &str) -> String {
+    let mut files = Vec::new();
+    let file = dir.join(format!("{module}.rs"));
+    if file.is_file() {
+        files.push(file);
+    }
+    let mut stack = vec![dir.join(module)];
+    while let Some(folder) = stack.pop() {
+        let Ok(entries) = std::fs::read_dir(&folder) else { continue };
+        for entry in entries {
+            let path = entry.expect("a directory entry").path();
+            if path.is_dir() {
+                stack.push(path);
+            } else if path.extension().is_some_and(|e| e == "rs") && path.file_name().is_some_and(|n| n != "tests.rs") {
+                files.push(path);
+            }
+        }
+    }
+    let mut code = String::new();
+    for file in files {
+        let text = std::fs::read_to_string(&file).unwrap_or_else(|e| panic!("{}: {e}", file.display()));
+        // The item after each `#[cfg(test)]` is skipped up to where its braces close (or its
+        // `;` ends it).
+        let (mut skipping, mut depth) = (false, 0i64);
+        for line in text.lines().filter(|line| !line.trim_start().starts_with("//")) {
+            if line.trim() == "#[cfg(test)]" {
+                (skipping, depth) = (true, 0);
+                continue;
+            }
+            if skipping {
+                depth += line.matches('{').count() as i64 - line.matches('}').count() as i64;
+                let ended = line.trim_end().ends_with('}') || line.trim_end().ends_with(';');
+                skipping = !(depth <= 0 && ended);
+                continue;
+            }
+            code.push_str(line);
+            code.push('\n');
+        }
+    }
+    code
+}
+
+/// A cycle among the modules under `dir` (each module's uses of another by one of `prefixes`
+/// and its name), or `None`: the modules then form layers, each using only the ones below it.
+fn module_cycle(dir: &Path, prefixes: &[&str]) -> Option<Vec<String>> {
+    let mut modules: Vec<String> = std::fs::read_dir(dir)
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+        .map(|entry| entry.expect("a directory entry").path())
+        .filter_map(|path| {
+            let stem = path.file_stem()?.to_str()?.to_owned();
+            let module = path.is_dir() || path.extension().is_some_and(|e| e == "rs");
+            (module && !["lib", "mod", "main", "bin", "tests"].contains(&stem.as_str())).then_some(stem)
+        })
+        .collect();
+    modules.sort();
+    modules.dedup();
+    let uses = |from: &str| -> Vec<String> {
+        let code = module_code(dir, from);
+        let names = |name: &str| -> Vec<String> {
+            prefixes.iter().flat_map(|p| ["::", ";", "}", ","].map(|end| format!("{p}{name}{end}"))).collect()
+        };
+        modules
+            .iter()
+            .filter(|to| *to != from && names(to).iter().any(|n| code.contains(n.as_str())))
+            .cloned()
+            .collect()
+    };
+    let edges: std::collections::BTreeMap<String, Vec<String>> = modules.iter().map(|m| (m.clone(), uses(m))).collect();
+    // Depth-first search; a module met again on the current path closes a cycle.
+    fn visit(
+        module: &str,
+        edges: &std::collections::BTreeMap<String, Vec<String>>,
+        path: &mut Vec<String>,
+        done: &mut std::collections::BTreeSet<String>,
+    ) -> Option<Vec<String>> {
+        if let Some(start) = path.iter().position(|m| m == module) {
+            let mut cycle = path[start..].to_vec();
+            cycle.push(module.to_owned());
+            return Some(cycle);
+        }
+        if done.contains(module) {
+            return None;
+        }
+        path.push(module.to_owned());
+        for next in &edges[module] {
+            if let Some(cycle) = visit(next, edges, path, done) {
+                return Some(cycle);
+            }
+        }
+        path.pop();
+        done.insert(module.to_owned());
+        None
+    }
+    let mut done = std::collections::BTreeSet::new();
+    modules.iter().find_map(|m| visit(m, &edges, &mut Vec::new(), &mut done))
+}
+
+/// `host-tools`'s modules, and the diagnosis's inside it, form layers: no module uses one that
+/// uses it back (outside tests), so each layer can become a crate of its own.
+#[test]
+fn host_tools_modules_use_each_other_without_a_cycle() {
+    let src = root().join("host-tools/src");
+    for (dir, prefixes) in
+        [(src.clone(), &["crate::"][..]), (src.join("diagnose"), &["super::", "crate::diagnose::"][..])]
+    {
+        if let Some(cycle) = module_cycle(&dir, prefixes) {
+            panic!("{}: a module cycle: {}", dir.display(), cycle.join(" -> "));
+        }
+    }
+}
