@@ -192,60 +192,40 @@ impl ser::Serializer for Literal {
     }
 }
 
-impl ser::SerializeTuple for Items {
-    type Ok = String;
-    type Error = LiteralError;
-    fn serialize_element<T: Serialize + ?Sized>(&mut self, value: &T) -> Result<(), LiteralError> {
-        self.push(value, None)
-    }
-    fn end(self) -> Result<String, LiteralError> {
-        Ok(self.finish())
-    }
+/// The five compound traits differ only in their method's name and whether it gets a field
+/// name; each pushes the item and joins the items at the end.
+macro_rules! compound {
+    ($trait:ident, $method:ident) => {
+        impl ser::$trait for Items {
+            type Ok = String;
+            type Error = LiteralError;
+            fn $method<T: Serialize + ?Sized>(&mut self, value: &T) -> Result<(), LiteralError> {
+                self.push(value, None)
+            }
+            fn end(self) -> Result<String, LiteralError> {
+                Ok(self.finish())
+            }
+        }
+    };
+    ($trait:ident, $method:ident, keyed) => {
+        impl ser::$trait for Items {
+            type Ok = String;
+            type Error = LiteralError;
+            fn $method<T: Serialize + ?Sized>(&mut self, key: &'static str, value: &T) -> Result<(), LiteralError> {
+                self.push(value, Some(key))
+            }
+            fn end(self) -> Result<String, LiteralError> {
+                Ok(self.finish())
+            }
+        }
+    };
 }
 
-impl ser::SerializeTupleStruct for Items {
-    type Ok = String;
-    type Error = LiteralError;
-    fn serialize_field<T: Serialize + ?Sized>(&mut self, value: &T) -> Result<(), LiteralError> {
-        self.push(value, None)
-    }
-    fn end(self) -> Result<String, LiteralError> {
-        Ok(self.finish())
-    }
-}
-
-impl ser::SerializeTupleVariant for Items {
-    type Ok = String;
-    type Error = LiteralError;
-    fn serialize_field<T: Serialize + ?Sized>(&mut self, value: &T) -> Result<(), LiteralError> {
-        self.push(value, None)
-    }
-    fn end(self) -> Result<String, LiteralError> {
-        Ok(self.finish())
-    }
-}
-
-impl ser::SerializeStruct for Items {
-    type Ok = String;
-    type Error = LiteralError;
-    fn serialize_field<T: Serialize + ?Sized>(&mut self, key: &'static str, value: &T) -> Result<(), LiteralError> {
-        self.push(value, Some(key))
-    }
-    fn end(self) -> Result<String, LiteralError> {
-        Ok(self.finish())
-    }
-}
-
-impl ser::SerializeStructVariant for Items {
-    type Ok = String;
-    type Error = LiteralError;
-    fn serialize_field<T: Serialize + ?Sized>(&mut self, key: &'static str, value: &T) -> Result<(), LiteralError> {
-        self.push(value, Some(key))
-    }
-    fn end(self) -> Result<String, LiteralError> {
-        Ok(self.finish())
-    }
-}
+compound!(SerializeTuple, serialize_element);
+compound!(SerializeTupleStruct, serialize_field);
+compound!(SerializeTupleVariant, serialize_field);
+compound!(SerializeStruct, serialize_field, keyed);
+compound!(SerializeStructVariant, serialize_field, keyed);
 
 #[cfg(test)]
 mod tests {
