@@ -16,7 +16,7 @@ root="$(cd "$(dirname "$0")/.." && pwd)"
 out="${1:-$root/out/diagnosis-campaigns}"
 per_class="${2:-10}"
 tools="${CARGO_TARGET_DIR:-$root/target}/release/host-tools"
-last=$(git -C "$root" log -1 --format=%H -- host-tools/src/diagnose tools/foreign-tunnel)
+last=$(git -C "$root" log -1 --format=%H -- diagnosis/src/diagnose host-tools/src/diagnose tools/foreign-tunnel)
 seed=$(( 0x${last:0:8} % 1000000 ))
 own_seed=$(( seed + 1 ))
 cases=$(( per_class * 14 ))

@@ -1,9 +1,9 @@
 //! cargo-fuzz target: the scenario loader must accept or reject every input with a typed error
 //! (naming the file, for the text formats), and never panic
-//! (`host_tools::reliability::fuzz::check_input`).
+//! (`xtask::fuzz::check_input`).
 #![no_main]
 
-use host_tools::reliability::fuzz::{Target, check_input};
+use xtask::fuzz::{Target, check_input};
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {

@@ -8,7 +8,7 @@ Prints one table (best of --repeat, wall time, this machine):
   package's column handling (the call a notebook makes);
 * the same with the arrays already prepared (the Rust loop and the output arrays alone);
 * ``Model.replay``: every run through the command line's replay function
-  (``host_tools::replay::replay_run``), outputs as arrays, on one core and in parallel over runs;
+  (``model_fit::replay::replay_run``), outputs as arrays, on one core and in parallel over runs;
 * ``host-tools replay``: the command line on the same data and model, on one core
   (``RAYON_NUM_THREADS=1``) and on all, reading the CSVs and writing the replay CSVs;
 * PySINDy's ``predict`` called once per step (how a PySINDy model is stepped in a control
@@ -90,7 +90,7 @@ def main() -> None:
 
     rows.append(("Estimator.run, arrays prepared", best_of(args.repeat, run_prepared), "Rust loop + output arrays"))
     rows.append(("Model.replay, all cores", best_of(args.repeat, lambda: model.replay(data)), "parallel over runs"))
-    # The command line's replay function (host_tools::replay::replay_run) on one thread: rayon's
+    # The command line's replay function (model_fit::replay::replay_run) on one thread: rayon's
     # pool is sized once per process, so in a child process.
     child = (
         "import sys, time, rollest\n"

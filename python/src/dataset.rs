@@ -31,7 +31,7 @@ pub fn load_dataset(py: Python<'_>, path: PathBuf) -> PyResult<Dataset> {
 /// run is held out (the split of `fit`, `evaluate` and `diagnose`).
 #[pyfunction]
 pub fn heldout_start(n_samples: usize, holdout_fraction: f64) -> usize {
-    host_tools::fit::split::Split::with_holdout(holdout_fraction).heldout(n_samples).start
+    model_fit::fit::split::Split::with_holdout(holdout_fraction).heldout(n_samples).start
 }
 
 #[pymethods]

@@ -1,13 +1,13 @@
 //! `Estimator`: estimator-core's f32 estimator in a Python object, stepped one sample at a time
 //! (`step`) or over whole arrays (`run`, without the GIL and without a Python loop per sample),
 //! exactly as `host-tools replay` steps it: the step on the recorded input, then the recorded
-//! demand noted (`host_tools::replay::replay_step`).
+//! demand noted (`model_fit::replay::replay_step`).
 
 use std::sync::Arc;
 
 use estimator_core::coeffs::N_TAPS;
 use estimator_core::{CoefficientSet, Input, Output};
-use host_tools::replay::{ESTIMATE_COLUMNS, HEALTH_COLUMNS, health_at};
+use model_fit::replay::{ESTIMATE_COLUMNS, HEALTH_COLUMNS, health_at};
 use numpy::{PyArray1, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;

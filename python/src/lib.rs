@@ -32,9 +32,9 @@ fn _rollest(module: &Bound<'_, PyModule>) -> PyResult<()> {
     module.add_function(wrap_pyfunction!(workflow::fit, module)?)?;
     module.add_function(wrap_pyfunction!(workflow::evaluate, module)?)?;
     module.add_function(wrap_pyfunction!(workflow::diagnose, module)?)?;
-    module.add("REPLAY_COLUMNS", host_tools::replay::REPLAY_COLUMNS.to_vec())?;
-    module.add("ESTIMATE_COLUMNS", host_tools::replay::ESTIMATE_COLUMNS.to_vec())?;
-    module.add("HEALTH_COLUMNS", host_tools::replay::HEALTH_COLUMNS.to_vec())?;
-    module.add("DEFAULT_HOLDOUT_FRACTION", host_tools::fit::split::DEFAULT_HOLDOUT_FRACTION)?;
+    module.add("REPLAY_COLUMNS", model_fit::replay::REPLAY_COLUMNS.to_vec())?;
+    module.add("ESTIMATE_COLUMNS", model_fit::replay::ESTIMATE_COLUMNS.to_vec())?;
+    module.add("HEALTH_COLUMNS", model_fit::replay::HEALTH_COLUMNS.to_vec())?;
+    module.add("DEFAULT_HOLDOUT_FRACTION", model_fit::fit::split::DEFAULT_HOLDOUT_FRACTION)?;
     Ok(())
 }

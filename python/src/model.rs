@@ -7,8 +7,8 @@ use std::sync::Arc;
 use estimator_core::CoefficientSet;
 use firmware_sim::campaign::mix_seed;
 use firmware_sim::fault::{FaultSpec, apply_to_run};
-use host_tools::model::{BLOB_FILE, ModelError};
-use host_tools::replay::{RECORDED_COLUMNS, recorded_at};
+use model_fit::model::{BLOB_FILE, ModelError};
+use model_fit::replay::{RECORDED_COLUMNS, recorded_at};
 use numpy::PyArray1;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -35,7 +35,7 @@ pub struct Model {
 impl Model {
     /// Reads a model folder (or its model.bin): the set, and every file of the folder.
     pub(crate) fn read(path: &Path) -> Result<Self, ModelError> {
-        let (set, source) = host_tools::model::load(Some(path))?;
+        let (set, source) = model_fit::model::load(Some(path))?;
         let io = |path: &Path| {
             let path = path.to_path_buf();
             move |source| ModelError::Io { path, source }
@@ -73,10 +73,10 @@ impl Model {
     #[staticmethod]
     fn built_in() -> PyResult<Self> {
         let set = estimator_core::coeffs::DEFAULT;
-        let blob = host_tools::model::encode(&set).map_err(|error| other_error(&error))?;
+        let blob = model_fit::model::encode(&set).map_err(|error| other_error(&error))?;
         Ok(Self {
             set: Arc::new(set),
-            source: host_tools::model::ModelSource::BuiltIn.to_string(),
+            source: model_fit::model::ModelSource::BuiltIn.to_string(),
             path: None,
             files: vec![(BLOB_FILE.to_owned(), blob)],
         })
@@ -133,7 +133,7 @@ impl Model {
 
     /// The blob (what `rollest_init_blob` and the firmware load).
     fn blob<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyBytes>> {
-        let blob = host_tools::model::encode(&self.set).map_err(|error| other_error(&error))?;
+        let blob = model_fit::model::encode(&self.set).map_err(|error| other_error(&error))?;
         Ok(PyBytes::new(py, &blob))
     }
 
@@ -164,7 +164,7 @@ impl Model {
                     } else {
                         std::borrow::Cow::Owned(apply_to_run(run, &faults, mix_seed(fault_seed, idx as u64)))
                     };
-                    let outputs = host_tools::replay::replay_run(set, &run);
+                    let outputs = model_fit::replay::replay_run(set, &run);
                     (run, outputs)
                 })
                 .collect()

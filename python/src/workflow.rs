@@ -94,7 +94,7 @@ pub fn simulate(
 
 /// Fits every coefficient on the training part of `data` and writes the model folder `out`.
 #[pyfunction]
-#[pyo3(signature = (data, out, seed = 1, holdout_fraction = host_tools::fit::split::DEFAULT_HOLDOUT_FRACTION, progress = None))]
+#[pyo3(signature = (data, out, seed = 1, holdout_fraction = model_fit::fit::split::DEFAULT_HOLDOUT_FRACTION, progress = None))]
 pub fn fit(
     py: Python<'_>,
     data: PathBuf,
@@ -113,7 +113,7 @@ pub fn fit(
 /// `data`, written into the report folder `report`; returns the report's page and the
 /// evaluation's warnings.
 #[pyfunction]
-#[pyo3(signature = (data, report, model = None, seed = 1, holdout_fraction = host_tools::fit::split::DEFAULT_HOLDOUT_FRACTION, progress = None))]
+#[pyo3(signature = (data, report, model = None, seed = 1, holdout_fraction = model_fit::fit::split::DEFAULT_HOLDOUT_FRACTION, progress = None))]
 pub fn evaluate(
     py: Python<'_>,
     data: PathBuf,
@@ -133,7 +133,7 @@ pub fn evaluate(
 /// The sim-to-real gap diagnosis of `real` against `model` (nominal models fitted on the data's
 /// training part when None), written into the report folder `report`; returns the page.
 #[pyfunction]
-#[pyo3(signature = (real, report, model = None, holdout_fraction = host_tools::fit::split::DEFAULT_HOLDOUT_FRACTION, progress = None))]
+#[pyo3(signature = (real, report, model = None, holdout_fraction = model_fit::fit::split::DEFAULT_HOLDOUT_FRACTION, progress = None))]
 pub fn diagnose(
     py: Python<'_>,
     real: PathBuf,

@@ -8,7 +8,7 @@ use host_tools::command::diagnosis::{DiagnoseArgs, SignatureSource, diagnose};
 use host_tools::command::model::{CodegenArgs, EvaluateArgs, FitArgs, ReplayArgs, codegen, evaluate, fit, replay};
 use host_tools::command::reliability::{FaultsArgs, faults};
 use host_tools::command::{CommandError, Silent};
-use host_tools::fit::split::DEFAULT_HOLDOUT_FRACTION;
+use model_fit::fit::split::DEFAULT_HOLDOUT_FRACTION;
 
 fn scenario(duration_s: f64) -> ScenarioArgs {
     ScenarioArgs { scenario: None, seed: Some(7), duration_s: Some(duration_s), effects: Vec::new() }
@@ -51,15 +51,22 @@ fn every_data_and_model_command_returns_its_numbers() {
     assert!(fitted.to_string().starts_with("held-out RMS of C_l"), "{fitted}");
 
     // The tables generated from the fit, then checked against a changed copy.
-    let generated = path(dir.path(), "generated.rs");
+    let generated = path(dir.path(), "generated");
     let mut codegen_args =
         CodegenArgs { model: model.clone(), check: false, out: Some(generated.clone()), provenance: None };
     assert!(!codegen(&codegen_args).expect("generates").checked);
     codegen_args.check = true;
     assert!(codegen(&codegen_args).expect("up to date").checked);
-    let text = std::fs::read_to_string(&generated).expect("generated");
-    std::fs::write(&generated, text.replacen("pub const", "pub(crate) const", 1)).expect("altered");
+    let module = generated.join("mod.rs");
+    let text = std::fs::read_to_string(&module).expect("generated");
+    std::fs::write(&module, text.replacen("pub const", "pub(crate) const", 1)).expect("altered");
     assert!(matches!(codegen(&codegen_args), Err(CommandError::Codegen(_))), "a stale file is an error");
+    // Generated again, then a file the generator does not write is found too.
+    codegen_args.check = false;
+    codegen(&codegen_args).expect("generates again");
+    std::fs::write(generated.join("old.rs"), "").expect("a leftover");
+    codegen_args.check = true;
+    assert!(matches!(codegen(&codegen_args), Err(CommandError::Codegen(_))), "a leftover file is an error");
 
     let replayed = replay(
         &ReplayArgs {

@@ -4,13 +4,13 @@
 
 use std::sync::OnceLock;
 
+use diagnosis::diagnose::{DiagnoseConfig, Signature, diagnose, signature};
+use diagnosis::validate::{CampaignConfig, effect_ratio, run_campaign, score};
 use estimator_core::CoefficientSet;
 use firmware_sim::campaign::Scenario;
 use firmware_sim::dataset::Dataset;
 use firmware_sim::tunnel::effects::{Effects, FaultMode, InertialTare, PressureFault, PressureLag};
-use host_tools::diagnose::{DiagnoseConfig, Signature, diagnose, signature};
-use host_tools::fit::pipeline::{FitConfig, fit_dataset};
-use host_tools::validate::{CampaignConfig, effect_ratio, run_campaign, score};
+use model_fit::fit::pipeline::{FitConfig, fit_dataset};
 
 /// Runs of 20 s at one angle of attack (roll, actuation, roll+actuation).
 fn scenario(seed: u64) -> Scenario {
@@ -36,7 +36,7 @@ fn record(effects: Effects) -> Dataset {
     dataset
 }
 
-fn run(dataset: &Dataset) -> host_tools::diagnose::result::Diagnosis {
+fn run(dataset: &Dataset) -> diagnosis::diagnose::result::Diagnosis {
     let (set, signature) = clean_model();
     let config = DiagnoseConfig { signature: Some(signature.clone()), ..DiagnoseConfig::default() };
     diagnose(dataset, Some((set, "clean fit".into())), &config, &|_| {}).expect("diagnoses").0
@@ -187,7 +187,7 @@ fn blind_campaign_slice_runs_and_scores() {
     let records = run_campaign(&config, &|| {});
     assert_eq!(records.len(), 3);
     for record in &records {
-        assert_eq!(record.truth_sha256, host_tools::digest::sha256_hex(record.truth.as_bytes()));
+        assert_eq!(record.truth_sha256, model_fit::digest::sha256_hex(record.truth.as_bytes()));
         // The scorer's verdict against the contract's, worked out here from the sealed truth
         // alone: the class is the one effect the truth holds (none for a clean case); a clean
         // case is right only as `none`, an effect only when named first, a sensor effect only
@@ -229,12 +229,12 @@ fn recording_at_another_rate_is_refused_naming_the_run() {
 
 /// `scenario` recorded without its provenance and diagnosed against the built-in model and its
 /// signature.
-fn diagnose_against_built_in(scenario: &Scenario) -> host_tools::diagnose::result::Diagnosis {
+fn diagnose_against_built_in(scenario: &Scenario) -> diagnosis::diagnose::result::Diagnosis {
     let mut dataset = scenario.simulate(&|| {}).expect("simulates");
     dataset.extra.clear();
     let set = estimator_core::coeffs::DEFAULT;
     let config =
-        DiagnoseConfig { signature: Some(host_tools::diagnose::default_signature()), ..DiagnoseConfig::default() };
+        DiagnoseConfig { signature: Some(diagnosis::diagnose::default_signature()), ..DiagnoseConfig::default() };
     diagnose(&dataset, Some((&set, "built-in".into())), &config, &|_| {}).expect("diagnoses").0
 }
 

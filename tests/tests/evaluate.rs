@@ -1,10 +1,10 @@
 //! Replay and evaluation: the replay writes every stage's estimate per run, the evaluation
 //! writes a complete report, and both degrade gracefully on datasets with fewer kinds of run.
 
+use evaluation::evaluate::{EvaluationConfig, evaluate, evaluation_report, figures};
 use firmware_sim::campaign::{KindName, Scenario};
 use firmware_sim::dataset::{RunKind, load_dataset, write_dataset};
-use host_tools::evaluate::{EvaluationConfig, evaluate, evaluation_report, figures};
-use host_tools::replay::{REPLAY_COLUMNS, write_replay};
+use model_fit::replay::{REPLAY_COLUMNS, write_replay};
 
 fn short(kinds: &[RunKind]) -> firmware_sim::dataset::Dataset {
     let mut scenario = Scenario {
@@ -106,7 +106,7 @@ fn evaluation_report_is_complete_on_the_three_kinds() {
     let root = tempfile::tempdir().unwrap();
     let dir = root.path().join("report");
     let json = serde_json::to_value(&evaluation).expect("serialises");
-    host_tools::report::write_report(&dir, &report, "evaluation.json", &json).expect("writes");
+    reports::write_report(&dir, &report, "evaluation.json", &json).expect("writes");
     for file in ["report.html", "report.md", "evaluation.json", "fig07_plant.svg", "blocks.svg"] {
         assert!(dir.join(file).is_file(), "{file}");
     }
@@ -126,13 +126,13 @@ fn evaluation_without_roll_plus_actuation_runs_says_what_is_missing() {
 #[test]
 fn model_argument_accepts_the_folder_or_the_blob_and_refuses_garbage() {
     let root = tempfile::tempdir().unwrap();
-    let default = host_tools::codegen::default_model();
-    let (from_folder, _) = host_tools::model::load(Some(&default)).expect("folder");
-    let (from_blob, _) = host_tools::model::load(Some(&default.join("model.bin"))).expect("blob");
+    let default = model_fit::codegen::default_model();
+    let (from_folder, _) = model_fit::model::load(Some(&default)).expect("folder");
+    let (from_blob, _) = model_fit::model::load(Some(&default.join("model.bin"))).expect("blob");
     assert_eq!(from_folder, from_blob);
     let garbage = root.path().join("model.bin");
     std::fs::write(&garbage, b"not a blob").unwrap();
-    let error = host_tools::model::load(Some(&garbage)).expect_err("garbage").to_string();
+    let error = model_fit::model::load(Some(&garbage)).expect_err("garbage").to_string();
     assert!(error.contains("model.bin") && error.contains("not a usable coefficient blob"), "{error}");
 }
 
@@ -144,8 +144,8 @@ fn replayed_dataset_round_trips_through_disk() {
     write_dataset(&root.path().join("data"), &dataset).unwrap();
     let loaded = load_dataset(&root.path().join("data")).unwrap();
     let set = estimator_core::coeffs::DEFAULT;
-    let from_memory = host_tools::replay::replay_run(&set, &dataset.runs[0]);
-    let from_disk = host_tools::replay::replay_run(&set, &loaded.runs[0]);
+    let from_memory = model_fit::replay::replay_run(&set, &dataset.runs[0]);
+    let from_disk = model_fit::replay::replay_run(&set, &loaded.runs[0]);
     assert_eq!(from_memory, from_disk);
 }
 

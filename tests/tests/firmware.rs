@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use firmware_sim::campaign::{KindName, Scenario};
 use firmware_sim::dataset::RunKind;
-use host_tools::{hil, qemu};
+use rigs::{hil, qemu};
 
 /// Instructions of one `Estimator::step` on the Cortex-M4F, largest after the warm-up steps:
 /// the budget with the built-in tables as generated code.
@@ -55,7 +55,7 @@ fn the_c_example_flies_like_the_host_and_refuses_a_flipped_blob() {
     assert_qemu();
     let run = &short_run();
     let dir = tempfile::tempdir().unwrap();
-    let blob = std::fs::read(host_tools::codegen::default_model().join("model.bin")).expect("the committed blob");
+    let blob = std::fs::read(model_fit::codegen::default_model().join("model.bin")).expect("the committed blob");
     for blob in [None, Some(blob.clone())] {
         let program = qemu::Program::CExample { blob };
         let replay =
@@ -139,7 +139,7 @@ fn a_blob_sent_over_the_link_flies_and_a_corrupted_one_is_refused() {
     let mut set = estimator_core::coeffs::BUILT_IN;
     // Another set than the built-in one: a different fusion gain changes every fused output.
     set.fusion.gain *= 0.5;
-    let blob = host_tools::model::encode(&set).expect("encodes");
+    let blob = model_fit::model::encode(&set).expect("encodes");
     let file = std::path::Path::new("model.bin");
     let dir = tempfile::tempdir().unwrap();
     let loaded = hil::hil(&run.meta.file, &samples, Some((file, &blob)), dir.path()).expect("runs in QEMU");

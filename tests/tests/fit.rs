@@ -3,17 +3,17 @@
 
 use firmware_sim::campaign::{BlowingSides, KindName, Scenario};
 use firmware_sim::dataset::RunKind;
-use host_tools::codegen::{DEFAULT_PROVENANCE, check, default_model, default_target, render};
-use host_tools::fit::FitError;
-use host_tools::fit::pipeline::{FitConfig, fit_dataset};
+use model_fit::codegen::{DEFAULT_PROVENANCE, check, default_model, default_target, render};
+use model_fit::fit::FitError;
+use model_fit::fit::pipeline::{FitConfig, fit_dataset};
 
 /// `host-tools codegen --check` on the committed model: the generated const tables are what
 /// the committed `models/default/model.bin` generates.
 #[test]
 fn generated_tables_are_up_to_date() {
-    let (set, _) = host_tools::model::load(Some(&default_model())).expect("the committed default model loads");
-    let text = render(&set, DEFAULT_PROVENANCE).expect("renders");
-    check(&default_target(), &text, "models/default").expect("estimator-core/src/coeffs/generated.rs is stale");
+    let (set, _) = model_fit::model::load(Some(&default_model())).expect("the committed default model loads");
+    let generated = render(&set, DEFAULT_PROVENANCE).expect("renders");
+    check(&default_target(), &generated, "models/default").expect("estimator-core/src/coeffs/generated/ is stale");
     assert_eq!(set, estimator_core::coeffs::DEFAULT, "the compiled tables equal the committed blob bit for bit");
 }
 
@@ -24,7 +24,7 @@ fn generated_tables_are_up_to_date() {
 fn committed_default_model_is_the_fit_on_the_default_campaign() {
     let outcome = fit_dataset(crate::fixture::default_campaign(), &FitConfig::default(), &|_| {})
         .expect("the default campaign fits");
-    let fitted = host_tools::model::encode(&outcome.set).expect("a valid set encodes");
+    let fitted = model_fit::model::encode(&outcome.set).expect("a valid set encodes");
     let committed = std::fs::read(default_model().join("model.bin")).expect("committed blob");
     assert!(fitted == committed, "re-run `host-tools fit` on the default campaign and `host-tools codegen`");
     // The coupling operator lowers the held-out error at every alpha, most at 20 deg, to at
@@ -78,7 +78,7 @@ fn short(kinds: &[RunKind]) -> firmware_sim::dataset::Dataset {
 #[ignore = "slow tier: ./ci.sh test runs it"]
 fn the_actuator_response_is_fitted_on_the_commands_or_is_the_identity() {
     use estimator_core::coeffs::ActuatorResponse;
-    use host_tools::fit::actuator::ResponseSource;
+    use model_fit::fit::actuator::ResponseSource;
     let dataset = short(&[RunKind::Roll, RunKind::Actuation]);
     let outcome = fit_dataset(&dataset, &FitConfig::default(), &|_| {}).expect("fits");
     let port = &outcome.report.actuator[0];
@@ -96,7 +96,7 @@ fn the_actuator_response_is_fitted_on_the_commands_or_is_the_identity() {
     }
     let outcome = fit_dataset(&without, &FitConfig::default(), &|_| {}).expect("fits");
     assert_eq!(outcome.set.actuator, [ActuatorResponse::IDENTITY; 2]);
-    let card = host_tools::fit::card::model_card(&outcome.set, &outcome.report, "test");
+    let card = model_fit::fit::card::model_card(&outcome.set, &outcome.report, "test");
     assert!(card.contains("the actuator response is the identity"), "{card}");
 }
 
@@ -155,7 +155,7 @@ fn the_held_out_part_does_not_reach_the_fit() {
     let config = FitConfig::default();
     let fit = |dataset: &firmware_sim::dataset::Dataset| {
         let outcome = fit_dataset(dataset, &config, &|_| {}).expect("fits");
-        host_tools::model::encode(&outcome.set).expect("encodes")
+        model_fit::model::encode(&outcome.set).expect("encodes")
     };
     let clean = fit(&dataset);
     let mut altered = dataset.clone();
@@ -192,7 +192,7 @@ fn pressure_path_does_not_read_blowing_as_roll_moment() {
     let outcome = fit_dataset(&dataset, &config, &|_| {}).expect("fits");
     let roll_error = outcome.report.heldout.per_alpha[0].pressure_rms.expect("pressure path scored");
     let run = dataset.runs.iter().find(|run| run.meta.kind == RunKind::Actuation).expect("an actuation run");
-    let outputs = host_tools::replay::replay_run(&outcome.set, run);
+    let outputs = model_fit::replay::replay_run(&outcome.set, run);
     let heldout = config.split.heldout(outputs.len());
     let n = heldout.len() as f64;
     let disagreement =

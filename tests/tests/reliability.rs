@@ -8,13 +8,13 @@ use std::process::{Command, Stdio};
 use std::time::Duration;
 
 use estimator_core::coeffs::DEFAULT;
+use evaluation::fault_study::{DETECTION_GOAL_MS, RMS_RATIO_GOAL, StudyConfig, fault_study};
 use firmware_sim::campaign::{KindName, Scenario};
 use firmware_sim::dataset::{Dataset, RunKind};
 use firmware_sim::fault::FaultSpec;
 use firmware_sim::sil::{Mode, SilSettings, run_scenario_with_faults};
-use host_tools::reliability::faults::{DETECTION_GOAL_MS, RMS_RATIO_GOAL, StudyConfig, fault_study};
-use host_tools::reliability::fuzz::{FuzzConfig, Target, fuzz};
-use host_tools::reliability::soak::{RECOVERED_ERROR_BOUND, SoakConfig, soak};
+use xtask::fuzz::{FuzzConfig, Target, fuzz};
+use xtask::soak::{RECOVERED_ERROR_BOUND, SoakConfig, soak};
 
 /// The paper's campaign, shortened: every kind at every alpha, 10 s per run (2 s held out).
 fn short_campaign() -> Dataset {
@@ -57,7 +57,7 @@ fn faulty_replay_holds_the_faulty_inputs_and_flags_the_dead_channel() {
     let root = tempfile::tempdir().unwrap();
     let out = root.path().join("replay");
     let faults = specs(&["dead:cp03@0.5s", "drop:cl=0.5"]);
-    host_tools::replay::write_replay_with_faults(&out, &dataset, &DEFAULT, "test", &faults, 9).expect("writes");
+    model_fit::replay::write_replay_with_faults(&out, &dataset, &DEFAULT, "test", &faults, 9).expect("writes");
     let manifest = std::fs::read_to_string(out.join("replay.toml")).unwrap();
     assert!(manifest.contains("faults = [\"dead:cp03@0.5s\", \"drop:cl=0.5@0s\"]"), "{manifest}");
     let text = std::fs::read_to_string(out.join(&dataset.runs[0].meta.file)).unwrap();
@@ -156,9 +156,9 @@ fn missing_cmu_runs_the_plant_on_the_demand() {
     let faulty = firmware_sim::fault::apply_to_run(run, &specs(&["missing:cmu@2s"]), 1);
     let mut without_commands = faulty.clone();
     (without_commands.channels.cmu_port_cmd, without_commands.channels.cmu_stbd_cmd) = (None, None);
-    let truth = host_tools::replay::replay_run(&DEFAULT, run);
-    let predicted = host_tools::replay::replay_run(&DEFAULT, &faulty);
-    let held = host_tools::replay::replay_run(&DEFAULT, &without_commands);
+    let truth = model_fit::replay::replay_run(&DEFAULT, run);
+    let predicted = model_fit::replay::replay_run(&DEFAULT, &faulty);
+    let held = model_fit::replay::replay_run(&DEFAULT, &without_commands);
     let lost = 2000..truth.len();
     let rms = |values: &mut dyn Iterator<Item = f64>| {
         let (sum, n) = values.fold((0.0, 0usize), |(sum, n), value| (sum + value * value, n + 1));
@@ -196,13 +196,13 @@ fn listing(dir: &Path) -> Option<Vec<String>> {
 /// (`model`, `report`); with `forever`, rewrites both until killed, printing `ready` after the
 /// first round.
 fn write_model_and_report(root: &Path, forever: bool) {
-    use host_tools::evaluate::{EvaluationConfig, evaluate, evaluation_report, figures};
+    use evaluation::evaluate::{EvaluationConfig, evaluate, evaluation_report, figures};
     let mut scenario = Scenario { duration_s: 6.0, alphas_deg: vec![10.0], ..Scenario::default() };
     scenario.kinds = vec![KindName(RunKind::Roll), KindName(RunKind::Actuation), KindName(RunKind::RollActuation)];
     scenario.excitation.blowing.delay_s = 1.0;
     let dataset = scenario.simulate(&|| {}).expect("simulates");
-    let config = host_tools::fit::pipeline::FitConfig::default();
-    let outcome = host_tools::fit::pipeline::fit_dataset(&dataset, &config, &|_| {}).expect("fits");
+    let config = model_fit::fit::pipeline::FitConfig::default();
+    let outcome = model_fit::fit::pipeline::fit_dataset(&dataset, &config, &|_| {}).expect("fits");
     let eval_config = EvaluationConfig { noise_levels: vec![], ..EvaluationConfig::default() };
     let (evaluation, replayed) = evaluate(&dataset, &outcome.set, &eval_config).expect("evaluates");
     let figures = figures(&dataset, &replayed, &eval_config.split, &evaluation, None);
@@ -210,9 +210,9 @@ fn write_model_and_report(root: &Path, forever: bool) {
     let json = serde_json::to_value(&evaluation).unwrap();
     let mut round = 0u64;
     loop {
-        host_tools::fit::card::write_model_folder(&root.join("model"), &outcome, "kill test", &[])
+        model_fit::fit::card::write_model_folder(&root.join("model"), &outcome, "kill test", &[])
             .expect("writes the model");
-        host_tools::report::write_report(&root.join("report"), &report, "evaluation.json", &json).expect("writes");
+        reports::write_report(&root.join("report"), &report, "evaluation.json", &json).expect("writes");
         if !forever {
             return;
         }

@@ -5,7 +5,7 @@ use std::fs;
 use std::path::PathBuf;
 
 use estimator_core::coeffs::MAX_VARS;
-use host_tools::sindy::{
+use sindy::{
     DMatrix, DVector, HeldoutScore, Library, Normalisation, QrProblem, SelectionConfig, SelectionRule, StlsConfig,
     log_thresholds, stls, stls_dense, sweep,
 };

@@ -1,10 +1,10 @@
 //! The synthetic wind tunnel: determinism, the paper's Table 1 on the default campaign, and
 //! that each effect, switched on alone, changes the channels it should and no others.
 
+use evaluation::analysis::superposition::superposition_table;
 use firmware_sim::campaign::Scenario;
 use firmware_sim::dataset::{Channels, Dataset, RunKind};
 use firmware_sim::effect::Effect;
-use host_tools::analysis::superposition::superposition_table;
 
 /// A short campaign at one alpha with all three kinds, where every effect is visible.
 fn short_scenario(alpha_deg: f64) -> Scenario {

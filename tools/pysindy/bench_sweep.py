@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Benchmark: the same STLSQ threshold sweep in PySINDy and in host-tools' SINDy engine.
+"""Benchmark: the same STLSQ threshold sweep in PySINDy and in the workspace's SINDy engine (the sindy crate).
 
 Usage (from the workspace root):
 
@@ -11,7 +11,7 @@ up to degree 2 without cl_afc^2: 14 columns) on N samples of the first-order lag
 make_fixtures.py with a little process noise. Theta and y are written to a temporary binary
 file. PySINDy runs a fresh `STLSQ(threshold=t, alpha, max_iter=20, normalize_columns=True,
 unbias=True).fit(Theta, y)` per threshold on the precomputed Theta, as a user would; the Rust
-side (`cargo run --release -p host-tools --example sindy_sweep`) factors [Theta | y] once and
+side (`cargo run --release -p sindy --example sindy_sweep`) factors [Theta | y] once and
 runs the sweep on R. Both exclude file I/O and the library construction. The thresholds are
 log-spaced from 1e-4 to 1 times the largest |normalised least-squares coefficient|. The script
 prints a timing table and checks that both engines select the same support at every threshold.
@@ -78,7 +78,7 @@ def pysindy_sweep(matrix, y, thresholds):
 
 def rust_sweep(problem_path, thresholds_path, repeats):
     subprocess.run(
-        ["cargo", "build", "--release", "-q", "-p", "host-tools", "--example", "sindy_sweep"], cwd=ROOT, check=True
+        ["cargo", "build", "--release", "-q", "-p", "sindy", "--example", "sindy_sweep"], cwd=ROOT, check=True
     )
     binary = os.path.join(ROOT, "target", "release", "examples", "sindy_sweep")
     args = [binary, problem_path, thresholds_path, "--alpha", repr(ALPHA), "--normalize", "l2"]

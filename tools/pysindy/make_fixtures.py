@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Reference fixtures for the SINDy engine (host-tools/src/sindy): PySINDy STLSQ results.
+"""Reference fixtures for the SINDy engine (sindy/src): PySINDy STLSQ results.
 
 Usage (from the workspace root; re-runnable, deterministic):
 

@@ -64,7 +64,7 @@ struct CodegenArgs {
 struct FuzzArgs {
     /// Loader to fuzz (repeatable): dataset-csv, manifest, blob, scenario; default: all.
     #[arg(long = "target")]
-    targets: Vec<host_tools::reliability::fuzz::Target>,
+    targets: Vec<xtask::fuzz::Target>,
     /// Mutated inputs per target.
     #[arg(long, default_value_t = 1_000_000)]
     execs: u64,
@@ -113,18 +113,18 @@ fn main() -> ExitCode {
     }
 }
 
-/// `codegen`: the committed default model -> `estimator-core/src/coeffs/generated.rs`.
+/// `codegen`: the committed default model -> `estimator-core/src/coeffs/generated/`.
 fn codegen(args: &CodegenArgs) -> anyhow::Result<()> {
-    use host_tools::codegen::{DEFAULT_PROVENANCE, check, default_model, default_target, render, write};
+    use model_fit::codegen::{DEFAULT_PROVENANCE, check, default_model, default_target, render, write};
     let model = default_model();
-    let (set, _) = host_tools::model::load(Some(&model))?;
-    let text = render(&set, DEFAULT_PROVENANCE)?;
+    let (set, _) = model_fit::model::load(Some(&model))?;
+    let generated = render(&set, DEFAULT_PROVENANCE)?;
     let target = default_target();
     if args.check {
-        check(&target, &text, &model.display().to_string())?;
+        check(&target, &generated, &model.display().to_string())?;
         eprintln!("{} is up to date with {}", target.display(), model.display());
     } else {
-        write(&target, &text)?;
+        write(&target, &generated)?;
         eprintln!("wrote {}", target.display());
     }
     Ok(())
@@ -132,7 +132,7 @@ fn codegen(args: &CodegenArgs) -> anyhow::Result<()> {
 
 /// `fuzz`: every loader (or the chosen ones) against mutated inputs; fails on any finding.
 fn fuzz(args: FuzzArgs) -> anyhow::Result<()> {
-    use host_tools::reliability::fuzz::{FuzzConfig, Target, fuzz};
+    use xtask::fuzz::{FuzzConfig, Target, fuzz};
     let targets = if args.targets.is_empty() { Target::ALL.to_vec() } else { args.targets };
     if let Some(dir) = &args.write_seeds {
         return write_seeds(dir, &targets);
@@ -173,7 +173,7 @@ fn fuzz(args: FuzzArgs) -> anyhow::Result<()> {
 
 /// Writes the seed inputs of `targets` into `dir/TARGET/seed-N` (complete or absent; libFuzzer
 /// adds its own inputs to these folders later, and a new `--write-seeds` replaces them).
-fn write_seeds(dir: &std::path::Path, targets: &[host_tools::reliability::fuzz::Target]) -> anyhow::Result<()> {
+fn write_seeds(dir: &std::path::Path, targets: &[xtask::fuzz::Target]) -> anyhow::Result<()> {
     const MARKER: &str = "SEEDS.md";
     firmware_sim::atomic::write_folder::<anyhow::Error>(dir, MARKER, |tmp| {
         std::fs::write(
@@ -183,7 +183,7 @@ fn write_seeds(dir: &std::path::Path, targets: &[host_tools::reliability::fuzz::
         for &target in targets {
             let target_dir = tmp.join(target.name());
             std::fs::create_dir(&target_dir)?;
-            for (idx, seed) in host_tools::reliability::fuzz::seeds(target).iter().enumerate() {
+            for (idx, seed) in xtask::fuzz::seeds(target).iter().enumerate() {
                 std::fs::write(target_dir.join(format!("seed-{idx}")), seed)?;
             }
         }
@@ -195,8 +195,8 @@ fn write_seeds(dir: &std::path::Path, targets: &[host_tools::reliability::fuzz::
 
 /// `soak`: a long run on noisy input with random faults; fails if an estimate leaves its bound.
 fn soak(args: SoakArgs) -> anyhow::Result<()> {
-    use host_tools::reliability::soak::{RECOVERED_ERROR_BOUND, RECOVERY_STEPS, SoakConfig, soak};
-    let (set, source) = host_tools::model::load(args.model.as_deref())?;
+    use xtask::soak::{RECOVERED_ERROR_BOUND, RECOVERY_STEPS, SoakConfig, soak};
+    let (set, source) = model_fit::model::load(args.model.as_deref())?;
     let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get) as u64;
     let config = SoakConfig { steps: args.steps, seed: args.seed, streams: args.streams.unwrap_or(cores) };
     let spinner = spinner(format!("soaking {} steps", args.steps));
@@ -242,7 +242,7 @@ fn soak(args: SoakArgs) -> anyhow::Result<()> {
 /// `header`: estimator-ffi's source -> `estimator-ffi/include/roll_estimator.h` (cbindgen, with
 /// `estimator-ffi/cbindgen.toml`, finished by `estimator-ffi/src/header.rs`).
 fn header(args: &HeaderArgs) -> anyhow::Result<()> {
-    let crate_dir = host_tools::qemu::workspace_root().join("estimator-ffi");
+    let crate_dir = rigs::qemu::workspace_root().join("estimator-ffi");
     let target = crate_dir.join("include/roll_estimator.h");
     let text = ffi_header::generate(&crate_dir).map_err(|error| anyhow::anyhow!(error))?;
     if args.check {

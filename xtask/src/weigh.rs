@@ -11,7 +11,7 @@ use std::time::Duration;
 
 use anyhow::Context;
 use firmware_sim::frames::{OUTPUT_FIELD_NAMES, OutputRecord, output_fields};
-use host_tools::qemu;
+use rigs::qemu;
 
 /// Flags of `weigh`.
 #[derive(Debug, clap::Args)]

@@ -7,7 +7,7 @@ use std::time::Instant;
 use firmware_sim::campaign::Scenario;
 
 use super::{CommandError, Progress};
-use crate::analysis::superposition::{SuperpositionRow, superposition_table};
+use evaluation::analysis::superposition::{SuperpositionRow, superposition_table};
 
 /// The flags of `simulate`.
 #[derive(Debug, Clone, clap::Args)]

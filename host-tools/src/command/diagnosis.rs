@@ -5,10 +5,10 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use super::{CommandError, Progress, holdout_split};
-use crate::diagnose::DiagnoseConfig;
-use crate::diagnose::result::Diagnosis;
-use crate::validate::CaseRecord;
-use crate::validate::score::{self, Summary};
+use diagnosis::diagnose::DiagnoseConfig;
+use diagnosis::diagnose::result::Diagnosis;
+use diagnosis::validate::CaseRecord;
+use diagnosis::validate::score::{self, Summary};
 
 /// The flags of `diagnose`.
 #[derive(Debug, Clone, clap::Args)]
@@ -24,7 +24,7 @@ pub struct DiagnoseArgs {
     #[arg(long)]
     pub report: PathBuf,
     /// Share of every run, at its end, that is held out.
-    #[arg(long = "holdout-fraction", default_value_t = crate::fit::split::DEFAULT_HOLDOUT_FRACTION)]
+    #[arg(long = "holdout-fraction", default_value_t = model_fit::fit::split::DEFAULT_HOLDOUT_FRACTION)]
     pub holdout_fraction: f64,
 }
 
@@ -103,23 +103,23 @@ pub fn diagnose(args: &DiagnoseArgs, progress: &dyn Progress) -> Result<Diagnose
     let dataset = firmware_sim::dataset::load_dataset(&args.real)?;
     let model = match &args.model {
         Some(path) => {
-            let (set, source) = crate::model::load(Some(path))?;
+            let (set, source) = model_fit::model::load(Some(path))?;
             Some((set, source.to_string()))
         }
         None => None,
     };
     // The model's own signature, written by `fit` beside model.bin; else the built-in model's.
     let own = match &args.model {
-        Some(path) => crate::diagnose::signature_beside(path)?.map(|found| (found, path.clone())),
+        Some(path) => diagnosis::diagnose::signature_beside(path)?.map(|found| (found, path.clone())),
         None => None,
     };
     let (signature, source) = match own {
         Some((found, path)) => (found, SignatureSource::Model(path)),
-        None => (crate::diagnose::default_signature(), SignatureSource::BuiltIn),
+        None => (diagnosis::diagnose::default_signature(), SignatureSource::BuiltIn),
     };
     let config = DiagnoseConfig { split, signature: Some(signature) };
     progress.stage("diagnosing", None);
-    let (diagnosis, evidence) = crate::diagnose::diagnose(
+    let (diagnosis, evidence) = diagnosis::diagnose::diagnose(
         &dataset,
         model.as_ref().map(|(set, name)| (set, name.clone())),
         &config,
@@ -128,10 +128,9 @@ pub fn diagnose(args: &DiagnoseArgs, progress: &dyn Progress) -> Result<Diagnose
         },
     )?;
     progress.stage("diagnosing: writing the report", None);
-    let report = crate::diagnose::report::build(&diagnosis, &evidence, &args.real.display().to_string());
+    let report = diagnosis::diagnose::report::build(&diagnosis, &evidence, &args.real.display().to_string());
     let json = serde_json::to_value(&diagnosis).map_err(|error| CommandError::write(&args.report)(error.into()))?;
-    crate::report::write_report(&args.report, &report, "diagnosis.json", &json)
-        .map_err(CommandError::write(&args.report))?;
+    reports::write_report(&args.report, &report, "diagnosis.json", &json).map_err(CommandError::write(&args.report))?;
     Ok(DiagnoseSummary {
         diagnosis,
         signature: source,
@@ -179,7 +178,7 @@ impl fmt::Display for ValidationSummary {
 /// `validate-diagnosis`: the blind campaign (or `--campaign`, one written by another program)
 /// -> report folder with `validation.json`.
 pub fn validate_diagnosis(args: &ValidateArgs, progress: &dyn Progress) -> Result<ValidationSummary, CommandError> {
-    use crate::validate::{CampaignConfig, external, run_campaign};
+    use diagnosis::validate::{CampaignConfig, external, run_campaign};
     let started = Instant::now();
     if let Some(dir) = &args.campaign {
         let count = std::fs::read_to_string(dir.join("campaign.json"))
@@ -228,7 +227,7 @@ fn write_validation(
     let summary = score::summarise(&records);
     let report = score::report(&records, &summary, &described);
     let json = serde_json::json!({ "config": config, "summary": summary, "cases": records });
-    crate::report::write_report(folder, &report, "validation.json", &json).map_err(CommandError::write(folder))?;
+    reports::write_report(folder, &report, "validation.json", &json).map_err(CommandError::write(folder))?;
     let acceptance = report.sections.first().and_then(|section| section.tables.first()).map(|table| table.rows.clone());
     Ok(ValidationSummary {
         records,

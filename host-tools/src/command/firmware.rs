@@ -10,8 +10,8 @@ use firmware_sim::sil::SilResults;
 
 use super::data::ScenarioArgs;
 use super::{CommandError, Progress, run_named};
-use crate::hil::HilRun;
-use crate::qemu::{Program, QemuReplay, SparseCode};
+use rigs::hil::HilRun;
+use rigs::qemu::{Program, QemuReplay, SparseCode};
 
 /// The flags of `sil`.
 #[derive(Debug, Clone, clap::Args)]
@@ -117,11 +117,11 @@ impl fmt::Display for SilSummary {
     /// RMS of the moment per scenario and mode, and the verdict.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(f, "SIL, seed {}: RMS of C_l per scenario", self.results.seed)?;
-        writeln!(f, "  {}", crate::sil::summary_header().join(" | "))?;
-        for row in crate::sil::summary_rows(&self.results) {
+        writeln!(f, "  {}", rigs::sil::summary_header().join(" | "))?;
+        for row in rigs::sil::summary_rows(&self.results) {
             writeln!(f, "  {}", row.join(" | "))?;
         }
-        writeln!(f, "{}", crate::sil::verdict(&self.results))?;
+        writeln!(f, "{}", rigs::sil::verdict(&self.results))?;
         writeln!(f, "report: {}", self.report.display())
     }
 }
@@ -132,7 +132,7 @@ pub fn sil(args: &SilArgs, progress: &dyn Progress) -> Result<SilSummary, Comman
     let started = Instant::now();
     let default = Scenario { duration_s: 20.0, ..Scenario::default() };
     let (scenario, described) = args.scenario.resolve(default, "the paper's campaign, 20 s per run")?;
-    let (model_set, source) = crate::model::load(args.model.as_deref())?;
+    let (model_set, source) = model_fit::model::load(args.model.as_deref())?;
     let settings = SilSettings::default();
     let mut tuning = None;
     let mut gains = Gains::of(&model_set);
@@ -159,8 +159,8 @@ pub fn sil(args: &SilArgs, progress: &dyn Progress) -> Result<SilSummary, Comman
     for fault in &args.faults {
         described.push_str(&format!(", fault {fault}"));
     }
-    let context = crate::sil::SilContext { model: source.to_string(), scenario: described, tuning };
-    crate::sil::write_sil_report(&args.report, &results, &context).map_err(CommandError::write(&args.report))?;
+    let context = rigs::sil::SilContext { model: source.to_string(), scenario: described, tuning };
+    rigs::sil::write_sil_report(&args.report, &results, &context).map_err(CommandError::write(&args.report))?;
     Ok(SilSummary { results, report: args.report.join("report.html"), elapsed_s: started.elapsed().as_secs_f64() })
 }
 
@@ -175,7 +175,7 @@ pub struct QemuReplaySummary {
 
 impl fmt::Display for QemuReplaySummary {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(&crate::qemu::summary(&self.replay))
+        f.write_str(&rigs::qemu::summary(&self.replay))
     }
 }
 
@@ -188,7 +188,7 @@ pub fn qemu_replay(args: &QemuReplayArgs, progress: &dyn Progress) -> Result<Qem
     let timeout = std::time::Duration::from_secs(args.timeout_s);
     let program = if args.c_example {
         let blob = match &args.model {
-            Some(path) => Some(crate::model::blob_bytes(path)?),
+            Some(path) => Some(model_fit::model::blob_bytes(path)?),
             None => None,
         };
         Program::CExample { blob }
@@ -200,10 +200,10 @@ pub fn qemu_replay(args: &QemuReplayArgs, progress: &dyn Progress) -> Result<Qem
     progress.stage("building the firmware and replaying in QEMU", None);
     let mut done = None;
     firmware_sim::atomic::write_folder::<CommandError>(&args.out, "summary.txt", |tmp| {
-        let replay = crate::qemu::qemu_replay(run, args.samples, tmp, timeout, &program)
+        let replay = rigs::qemu::qemu_replay(run, args.samples, tmp, timeout, &program)
             .map_err(CommandError::firmware(format!("replaying {} in QEMU", args.run.display())))?;
         let path = tmp.join("summary.txt");
-        std::fs::write(&path, crate::qemu::summary(&replay)).map_err(CommandError::write(&path))?;
+        std::fs::write(&path, rigs::qemu::summary(&replay)).map_err(CommandError::write(&path))?;
         done = Some(replay);
         Ok(())
     })?;
@@ -226,7 +226,7 @@ pub struct HilSummary {
 impl fmt::Display for HilSummary {
     /// The totals over the runs.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(&crate::hil::totals(&self.runs))
+        f.write_str(&rigs::hil::totals(&self.runs))
     }
 }
 
@@ -242,8 +242,8 @@ pub fn hil(args: &HilArgs, progress: &dyn Progress) -> Result<HilSummary, Comman
     let blob = match &args.model {
         Some(dir) => {
             let file = dir.join("model.bin");
-            let bytes =
-                std::fs::read(&file).map_err(|source| crate::model::ModelError::Io { path: file.clone(), source })?;
+            let bytes = std::fs::read(&file)
+                .map_err(|source| model_fit::model::ModelError::Io { path: file.clone(), source })?;
             Some((file, bytes))
         }
         None => None,
@@ -256,20 +256,20 @@ pub fn hil(args: &HilArgs, progress: &dyn Progress) -> Result<HilSummary, Comman
             let stem = run.meta.file.file_stem().map_or_else(|| "run".into(), |s| s.to_string_lossy().into_owned());
             let dir = tmp.join(&stem);
             std::fs::create_dir_all(&dir).map_err(CommandError::write(&dir))?;
-            let samples = crate::hil::samples_of(run, args.samples);
+            let samples = rigs::hil::samples_of(run, args.samples);
             let blob = blob.as_ref().map(|(file, bytes)| (file.as_path(), bytes.as_slice()));
-            let result = crate::hil::hil(&run.meta.file, &samples, blob, &dir)
+            let result = rigs::hil::hil(&run.meta.file, &samples, blob, &dir)
                 .map_err(CommandError::firmware(format!("hil of {}", run.meta.file.display())))?;
-            let summary = crate::hil::summary(&result);
+            let summary = rigs::hil::summary(&result);
             progress.stage(summary.trim_end(), None);
             progress.step();
             text.push_str(&summary);
             results.push(result);
         }
-        text.push_str(&crate::hil::totals(&results));
+        text.push_str(&rigs::hil::totals(&results));
         let path = tmp.join("summary.txt");
         std::fs::write(&path, &text).map_err(CommandError::write(&path))?;
-        let json = serde_json::json!({ "runs": results, "totals": crate::hil::totals_json(&results) });
+        let json = serde_json::json!({ "runs": results, "totals": rigs::hil::totals_json(&results) });
         let path = tmp.join("hil.json");
         let text = serde_json::to_string_pretty(&json).map_err(|error| CommandError::write(&path)(error.into()))?;
         std::fs::write(&path, text).map_err(CommandError::write(&path))

@@ -9,23 +9,24 @@
 
 pub mod data;
 pub mod diagnosis;
+#[cfg(feature = "rigs")]
 pub mod firmware;
 pub mod model;
 pub mod reliability;
 
 use std::path::{Path, PathBuf};
 
-use crate::analysis::superposition::SuperpositionError;
-use crate::codegen::CodegenError;
-use crate::diagnose::{DiagnoseError, SignatureFileError};
-use crate::fit::FitError;
-use crate::model::ModelError;
-use crate::reliability::faults::StudyError;
-use crate::replay::ReplayError;
-use crate::validate::external::ExternalError;
+use ::diagnosis::diagnose::{DiagnoseError, SignatureFileError};
+use ::diagnosis::validate::external::ExternalError;
+use evaluation::analysis::superposition::SuperpositionError;
+use evaluation::fault_study::StudyError;
 use firmware_sim::campaign::ScenarioError;
 use firmware_sim::dataset::{Dataset, DatasetError, Run};
 use firmware_sim::sil::SilError;
+use model_fit::codegen::CodegenError;
+use model_fit::fit::FitError;
+use model_fit::model::ModelError;
+use model_fit::replay::ReplayError;
 
 /// Where a long command reports how far it is (a progress bar on the command line, nothing in
 /// tests). Called from worker threads, hence `Sync`.
@@ -145,6 +146,7 @@ impl CommandError {
     }
 
     /// A firmware error while doing `what`.
+    #[cfg(feature = "rigs")]
     fn firmware(what: impl Into<String>) -> impl FnOnce(anyhow::Error) -> Self {
         let what = what.into();
         move |error| Self::Firmware { what, source: error.into() }
@@ -152,14 +154,14 @@ impl CommandError {
 }
 
 /// Checks a `--holdout-fraction`: in `[0, 1)`.
-fn holdout_split(holdout_fraction: f64) -> Result<crate::fit::split::Split, CommandError> {
+fn holdout_split(holdout_fraction: f64) -> Result<model_fit::fit::split::Split, CommandError> {
     if !(0.0..1.0).contains(&holdout_fraction) {
         return Err(CommandError::Flag {
             flag: "--holdout-fraction",
             expected: format!("must be in [0, 1), found {holdout_fraction}"),
         });
     }
-    Ok(crate::fit::split::Split::with_holdout(holdout_fraction))
+    Ok(model_fit::fit::split::Split::with_holdout(holdout_fraction))
 }
 
 /// The run of `dataset` whose file is `file`.

@@ -10,11 +10,11 @@ use firmware_sim::fault::FaultSpec;
 use estimator_core::coeffs::CoefficientSet;
 
 use super::{CommandError, Progress, holdout_split};
-use crate::evaluate::{
+use evaluation::evaluate::{
     Evaluation, EvaluationConfig, Replayed, evaluate as evaluate_held_out, evaluation_report, figures,
     with_balance_noise,
 };
-use crate::fit::pipeline::{FitConfig, FitOutcome, FitReport, fit_dataset, refit_coupling};
+use model_fit::fit::pipeline::{FitConfig, FitOutcome, FitReport, fit_dataset, refit_coupling};
 
 /// The flags of `fit`.
 #[derive(Debug, Clone, clap::Args)]
@@ -29,7 +29,7 @@ pub struct FitArgs {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Share of every run, at its end, held out from fitting.
-    #[arg(long = "holdout-fraction", default_value_t = crate::fit::split::DEFAULT_HOLDOUT_FRACTION)]
+    #[arg(long = "holdout-fraction", default_value_t = model_fit::fit::split::DEFAULT_HOLDOUT_FRACTION)]
     pub holdout_fraction: f64,
 }
 
@@ -39,13 +39,14 @@ pub struct CodegenArgs {
     /// Model folder (or its model.bin).
     #[arg(long)]
     pub model: PathBuf,
-    /// Only compare with the committed file; fail if it is stale.
+    /// Only compare with the committed files; fail if they are stale.
     #[arg(long)]
     pub check: bool,
-    /// The generated file (default: estimator-core/src/coeffs/generated.rs of this workspace).
+    /// The generated module's folder (default: estimator-core/src/coeffs/generated of this
+    /// workspace).
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Where the tables come from, written into the generated file's header.
+    /// Where the tables come from, written into the generated module's header.
     #[arg(long)]
     pub provenance: Option<String>,
 }
@@ -87,7 +88,7 @@ pub struct EvaluateArgs {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Share of every run, at its end, that is evaluated (must match the fit's).
-    #[arg(long = "holdout-fraction", default_value_t = crate::fit::split::DEFAULT_HOLDOUT_FRACTION)]
+    #[arg(long = "holdout-fraction", default_value_t = model_fit::fit::split::DEFAULT_HOLDOUT_FRACTION)]
     pub holdout_fraction: f64,
 }
 
@@ -107,7 +108,7 @@ pub struct FitSummary {
 impl fmt::Display for FitSummary {
     /// The held-out table.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        use crate::fit::heldout::HeldoutAlpha;
+        use model_fit::fit::heldout::HeldoutAlpha;
         writeln!(f, "held-out RMS of C_l (replay through the fitted core; {})", self.report.split)?;
         let line = |cells: &[&str]| cells.iter().map(|cell| format!("{cell:>13}")).collect::<Vec<_>>().join(" ");
         writeln!(f, "{}", line(&HeldoutAlpha::COLUMNS))?;
@@ -130,12 +131,12 @@ pub fn fit(args: &FitArgs, progress: &dyn Progress) -> Result<FitSummary, Comman
     let FitOutcome { set, report } =
         fit_dataset(&dataset, &config, &|stage| progress.stage(&format!("fitting: {stage}"), None)).map_err(failed)?;
     progress.stage("fitting: the model's diagnosis signature on its held-out data", None);
-    let signature = crate::diagnose::signature(&dataset, &set, config.split)?;
+    let signature = diagnosis::diagnose::signature(&dataset, &set, config.split)?;
     progress.stage("writing the model folder", None);
     let described = format!("{} (seed {})", args.data.display(), args.seed);
     let outcome = FitOutcome { set, report };
-    let signature = (crate::diagnose::SIGNATURE_FILE, serde_json::to_vec_pretty(&signature).unwrap_or_default());
-    crate::fit::card::write_model_folder(&args.out, &outcome, &described, &[signature])?;
+    let signature = (diagnosis::diagnose::SIGNATURE_FILE, serde_json::to_vec_pretty(&signature).unwrap_or_default());
+    model_fit::fit::card::write_model_folder(&args.out, &outcome, &described, &[signature])?;
     let FitOutcome { set, report } = outcome;
     Ok(FitSummary { out: args.out.clone(), set, report, elapsed_s: started.elapsed().as_secs_f64() })
 }
@@ -164,25 +165,25 @@ impl fmt::Display for CodegenSummary {
 /// `codegen`: model -> const tables in estimator-core, or (`--check`) an error when the
 /// committed tables differ from the model's.
 pub fn codegen(args: &CodegenArgs) -> Result<CodegenSummary, CommandError> {
-    let (set, source) = crate::model::load(Some(&args.model))?;
+    let (set, source) = model_fit::model::load(Some(&args.model))?;
     let is_default = |path: &std::path::Path| {
         let canonical = |p: &std::path::Path| std::fs::canonicalize(p).ok();
         let folder = if path.is_dir() { path.to_path_buf() } else { path.parent().unwrap_or(path).to_path_buf() };
-        canonical(&folder).is_some() && canonical(&folder) == canonical(&crate::codegen::default_model())
+        canonical(&folder).is_some() && canonical(&folder) == canonical(&model_fit::codegen::default_model())
     };
     let provenance = args.provenance.clone().unwrap_or_else(|| {
         if is_default(&args.model) {
-            crate::codegen::DEFAULT_PROVENANCE.to_owned()
+            model_fit::codegen::DEFAULT_PROVENANCE.to_owned()
         } else {
             format!("the fit in {source}")
         }
     });
-    let text = crate::codegen::render(&set, &provenance)?;
-    let target = args.out.clone().unwrap_or_else(crate::codegen::default_target);
+    let generated = model_fit::codegen::render(&set, &provenance)?;
+    let target = args.out.clone().unwrap_or_else(model_fit::codegen::default_target);
     if args.check {
-        crate::codegen::check(&target, &text, &args.model.display().to_string())?;
+        model_fit::codegen::check(&target, &generated, &args.model.display().to_string())?;
     } else {
-        crate::codegen::write(&target, &text)?;
+        model_fit::codegen::write(&target, &generated)?;
     }
     Ok(CodegenSummary { target, model: args.model.clone(), checked: args.check })
 }
@@ -208,11 +209,17 @@ impl fmt::Display for ReplaySummary {
 pub fn replay(args: &ReplayArgs, progress: &dyn Progress) -> Result<ReplaySummary, CommandError> {
     let started = Instant::now();
     let dataset = firmware_sim::dataset::load_dataset(&args.data)?;
-    let (set, source) = crate::model::load(args.model.as_deref())?;
+    let (set, source) = model_fit::model::load(args.model.as_deref())?;
     progress.stage(&format!("replaying {} runs", dataset.runs.len()), None);
     let described = format!("data {}, model {source}", args.data.display());
-    let n_runs =
-        crate::replay::write_replay_with_faults(&args.out, &dataset, &set, &described, &args.faults, args.fault_seed)?;
+    let n_runs = model_fit::replay::write_replay_with_faults(
+        &args.out,
+        &dataset,
+        &set,
+        &described,
+        &args.faults,
+        args.fault_seed,
+    )?;
     Ok(ReplaySummary { out: args.out.clone(), n_runs, elapsed_s: started.elapsed().as_secs_f64() })
 }
 
@@ -234,7 +241,7 @@ pub fn evaluate(args: &EvaluateArgs, progress: &dyn Progress) -> Result<Evaluate
     let split = holdout_split(args.holdout_fraction)?;
     let started = Instant::now();
     let dataset = firmware_sim::dataset::load_dataset(&args.data)?;
-    let (set, source) = crate::model::load(args.model.as_deref())?;
+    let (set, source) = model_fit::model::load(args.model.as_deref())?;
     let config = EvaluationConfig { split, seed: args.seed, ..EvaluationConfig::default() };
     progress.stage("evaluating: replay, tables, noise sweep", None);
     let failed = |source| CommandError::Evaluate { data: args.data.clone(), source };
@@ -257,7 +264,7 @@ pub fn evaluate(args: &EvaluateArgs, progress: &dyn Progress) -> Result<Evaluate
     let described = format!("Data `{}`, model {source}.", args.data.display());
     let report = evaluation_report(&evaluation, figures, &described);
     let json = serde_json::json!({ "data": args.data.display().to_string(), "model": source.to_string(), "evaluation": evaluation });
-    crate::report::write_report(&args.report, &report, "evaluation.json", &json)
+    reports::write_report(&args.report, &report, "evaluation.json", &json)
         .map_err(CommandError::write(&args.report))?;
     Ok(EvaluateSummary {
         evaluation,

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use super::{CommandError, Progress, holdout_split};
-use crate::reliability::faults::{COLUMNS, FaultStudy, StudyConfig, fault_study, study_report, table_rows};
+use evaluation::fault_study::{COLUMNS, FaultStudy, StudyConfig, fault_study, study_report, table_rows};
 
 /// The flags of `faults`.
 #[derive(Debug, Clone, clap::Args)]
@@ -23,7 +23,7 @@ pub struct FaultsArgs {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Share of every run, at its end, that is held out (must match the fit's).
-    #[arg(long = "holdout-fraction", default_value_t = crate::fit::split::DEFAULT_HOLDOUT_FRACTION)]
+    #[arg(long = "holdout-fraction", default_value_t = model_fit::fit::split::DEFAULT_HOLDOUT_FRACTION)]
     pub holdout_fraction: f64,
 }
 
@@ -58,14 +58,13 @@ pub fn faults(args: &FaultsArgs, progress: &dyn Progress) -> Result<FaultsSummar
     let split = holdout_split(args.holdout_fraction)?;
     let started = Instant::now();
     let dataset = firmware_sim::dataset::load_dataset(&args.data)?;
-    let (set, source) = crate::model::load(args.model.as_deref())?;
+    let (set, source) = model_fit::model::load(args.model.as_deref())?;
     let config = StudyConfig { split, seed: args.seed, ..StudyConfig::default() };
     progress.stage("injecting faults", None);
     let study = fault_study(&dataset, &set, &config)?;
     let report = study_report(&study, &format!("Data `{}`, model {source}", args.data.display()));
     let json =
         serde_json::json!({ "data": args.data.display().to_string(), "model": source.to_string(), "study": study });
-    crate::report::write_report(&args.report, &report, "faults.json", &json)
-        .map_err(CommandError::write(&args.report))?;
+    reports::write_report(&args.report, &report, "faults.json", &json).map_err(CommandError::write(&args.report))?;
     Ok(FaultsSummary { study, report: args.report.join("report.html"), elapsed_s: started.elapsed().as_secs_f64() })
 }
