@@ -9,6 +9,12 @@ set -euo pipefail
 cd "$(dirname "$0")"
 # The virtual environment of the `python` job.
 VENV="$(pwd)/${CARGO_TARGET_DIR:-target}/python-venv"
+# The host-tools binary the `python` and `foreign` jobs run: the one the `test` job built for the
+# command line's end-to-end test (the test profile: optimised, with line tables; a diagnosis
+# runs about 8 % slower than in the release build), so that CI does not build the workspace
+# a second time. `cargo test --no-run` builds it when the test job did not run first.
+export ROLLEST_HOST_TOOLS="$(pwd)/${CARGO_TARGET_DIR:-target}/debug/host-tools"
+test_binary() { cargo test --workspace --no-run --quiet 2>/dev/null || cargo test --workspace --no-run; }
 
 setup() {
     # The toolchain itself comes from rust-toolchain.toml; add what a fresh machine lacks.
@@ -60,9 +66,9 @@ nostd() {
 # The Python package (`rollest`): installed as the README says, its pytest suite against the
 # command line, its type stubs against the built module (mypy's stubtest), the wrappers typed.
 python() {
-    cargo build --release -p host-tools
+    test_binary
     "$VENV/bin/pip" install --quiet --disable-pip-version-check ./python
-    ROLLEST_HOST_TOOLS="${CARGO_TARGET_DIR:-target}/release/host-tools" "$VENV/bin/pytest" -q python/tests
+    "$VENV/bin/pytest" -q python/tests
     (cd "$VENV" && bin/python -m mypy.stubtest rollest._rollest)
     "$VENV/bin/python" -m mypy --strict --no-incremental python/rollest
 }
@@ -71,11 +77,10 @@ python() {
 # noise and file conventions): fit a clean recording, then every injectable effect must be named;
 # then a slice of a blind campaign, every case on its own seed (campaign_check.sh).
 foreign() {
-    cargo build --release -p host-tools
+    test_binary
     tools/foreign-tunnel/check.sh "${CARGO_TARGET_DIR:-target}/foreign-tunnel"
     # The Python package on a recording the other program wrote (the `python` job installed it).
     ROLLEST_FOREIGN_DATA="${CARGO_TARGET_DIR:-target}/foreign-tunnel/bias_drift" \
-        ROLLEST_HOST_TOOLS="${CARGO_TARGET_DIR:-target}/release/host-tools" \
         "$VENV/bin/pytest" -q python/tests -k another_program
     tools/foreign-tunnel/campaign_check.sh "${CARGO_TARGET_DIR:-target}/foreign-campaign"
 }

@@ -1,9 +1,9 @@
 # Shared by check.sh and other_seeds.sh (sourced): where things are, and the two steps both
-# take. Sets `here`, `tools` (the release host-tools) and `work` (the first argument, or a new
-# temporary folder).
+# take. Sets `here`, `tools` (the host-tools binary: $ROLLEST_HOST_TOOLS, else the release
+# build) and `work` (the first argument, or a new temporary folder).
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 root="$(cd "$here/../.." && pwd)"
-tools="${CARGO_TARGET_DIR:-$root/target}/release/host-tools"
+tools="${ROLLEST_HOST_TOOLS:-${CARGO_TARGET_DIR:-$root/target}/release/host-tools}"
 work="${1:-$(mktemp -d)}"
 mkdir -p "$work"
 
