@@ -86,6 +86,17 @@ pub const MIN_REMAINDER_TO_NOISE: f64 = 0.05;
 /// share of the gap ([`MAX_REMAINDER_GAP_SHARE`]).
 pub const MAX_REMAINDER_GAP_TO_NOISE: f64 = 1.0;
 
+/// Least gap that nothing predicts and that still counts as real, as a ratio of its RMS (beyond
+/// the sim's own gap) to the noise RMS: one, the level below which the contract lets an effect
+/// be missed and at which it calls the gap the noise floor (docs/spec/diagnosis.md, "The
+/// verdict `none`"). A gap that a candidate or the structure probe predicts out of sample is
+/// real from the naming threshold ([`MIN_EFFECT_TO_NOISE`]) up; a gap that nothing predicts has
+/// only its size as evidence, against a floor measured on one other recording, so it must not
+/// be significantly below the contract's level ([`GAP_SIGNIFICANCE_Z`] standard errors). A
+/// smaller one is the sim's scatter from recording to recording, or an effect the contract lets
+/// be missed.
+pub const MIN_UNPREDICTED_GAP_TO_NOISE: f64 = 1.0;
+
 /// Largest share of the gap's RMS (beyond noise and the sim's own gap) that the named balance
 /// effects may leave and still explain it: half. Effects that remove less than half of a gap
 /// (a shrink below 0.5, in the contract's measure of how far the gap shrinks) do not explain
@@ -400,7 +411,7 @@ fn sim_of(
 
 #[cfg(test)]
 mod tests {
-    use super::{MIN_EFFECT_TO_NOISE, PooledGap};
+    use super::{MIN_EFFECT_TO_NOISE, MIN_UNPREDICTED_GAP_TO_NOISE, PooledGap};
 
     fn pooled(runs: &[(f64, f64, f64)]) -> bool {
         let mut pooled = PooledGap::default();
@@ -410,17 +421,34 @@ mod tests {
         pooled.beyond_scatter()
     }
 
-    /// The excess must reach the sim's own gap (or the naming threshold, when that is larger)
-    /// and two standard errors, pooled over the runs by samples; non-finite runs are left out.
+    /// The excess must reach the sim's own gap and two standard errors, pooled over the runs by
+    /// samples.
     #[test]
     fn a_gap_is_beyond_the_sims_scatter_at_twice_its_own_gap_and_two_standard_errors() {
-        let min = MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE;
         // Twice the sim's own gap, tiny scatter: beyond; a hair less: not.
         assert!(pooled(&[(2.0, 1.0, 0.01), (2.0, 1.0, 0.01)]));
         assert!(!pooled(&[(2.0 - 1e-9, 1.0, 0.01), (2.0, 1.0, 0.01)]));
-        // A small floor: the naming threshold decides.
-        assert!(pooled(&[(0.1 + min, 0.1, 0.01)]));
-        assert!(!pooled(&[(0.1 + min - 1e-9, 0.1, 0.01)]));
+    }
+
+    /// A gap nothing predicts counts only where it is not significantly below the noise RMS:
+    /// with a tight scatter, a gap of half the noise RMS beyond the sim's own is its floor, and
+    /// never does one below the naming threshold count.
+    #[test]
+    fn an_unpredicted_gap_below_the_noise_rms_is_the_floor() {
+        let level = MIN_UNPREDICTED_GAP_TO_NOISE * MIN_UNPREDICTED_GAP_TO_NOISE;
+        assert!(!pooled(&[(0.1 + 0.28, 0.1, 0.03)]));
+        // Two standard errors below the level still count; a hair further does not.
+        assert!(pooled(&[(0.1 + level - 0.2, 0.1, 0.1)]));
+        assert!(!pooled(&[(0.1 + level - 0.2 - 1e-9, 0.1, 0.1)]));
+        let naming = MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE;
+        for scatter in [0.01, 0.1, 0.2, 0.3, 0.5, 1.0] {
+            assert!(!pooled(&[(0.1 + naming, 0.1, scatter)]), "{scatter}");
+        }
+    }
+
+    /// Large enough is not enough without significance; non-finite runs are left out.
+    #[test]
+    fn a_gap_needs_significance_and_runs_with_figures() {
         // Large enough but not significant: two runs of scatter s pool to s / sqrt(2).
         assert!(!pooled(&[(3.0, 1.0, 1.5), (3.0, 1.0, 1.5)]));
         assert!(pooled(&[(3.0, 1.0, 1.4), (3.0, 1.0, 1.4)]));

@@ -538,11 +538,14 @@ impl PooledGap {
     /// error is measured on one recording, the fit's; on other inputs (another excitation,
     /// another rate of roll) its mean square is not bounded by that, and may well be as large
     /// again. So the excess over the sim's own gap must be at least the sim's own gap (the
-    /// floor taken as known within [`OWN_GAP_UNCERTAINTY`]) and the naming threshold, and significant
-    /// by [`GAP_SIGNIFICANCE_Z`] standard errors. A gap this far beyond the sim is not its
-    /// scatter from recording to recording, whether or not any candidate or probe predicts it
+    /// floor taken as known within [`OWN_GAP_UNCERTAINTY`]), and significant by
+    /// [`GAP_SIGNIFICANCE_Z`] standard errors. A gap this far beyond the sim is not its
+    /// scatter from recording to recording. The decision is read where nothing predicts the gap
     /// (a random modulation, such as a fluctuating dynamic pressure, predicts nothing out of
-    /// sample).
+    /// sample), so its size is its only evidence: it must also not lie significantly below the
+    /// contract's level for a gap that may be missed ([`MIN_UNPREDICTED_GAP_TO_NOISE`]). Both
+    /// bounds on the scatter together ask for at least half that level, above the naming
+    /// threshold ([`MIN_EFFECT_TO_NOISE`]).
     pub(super) fn beyond_scatter(&self) -> bool {
         if self.n <= 0.0 {
             return false;
@@ -550,7 +553,8 @@ impl PooledGap {
         let excess = (self.gap - self.floor) / self.n;
         let floor = self.floor / self.n;
         let scatter = self.scatter_sq.sqrt() / self.n;
-        excess >= (MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE).max((OWN_GAP_UNCERTAINTY - 1.0) * floor)
+        excess >= (OWN_GAP_UNCERTAINTY - 1.0) * floor
             && excess >= GAP_SIGNIFICANCE_Z * scatter
+            && excess + GAP_SIGNIFICANCE_Z * scatter >= MIN_UNPREDICTED_GAP_TO_NOISE * MIN_UNPREDICTED_GAP_TO_NOISE
     }
 }
