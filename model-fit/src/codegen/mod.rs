@@ -93,20 +93,20 @@ pub fn default_target() -> PathBuf {
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Generated {
     /// `(file name, formatted source)`.
-    pub files: Vec<(&'static str, String)>,
+    pub files: Vec<(String, String)>,
 }
 
 /// The file that makes a folder the generated module (and lets `write` replace it).
 const MODULE_FILE: &str = "mod.rs";
 
 /// The coefficient set's large fields, each a const in a file of its own so that no generated
-/// file is a wall of a thousand lines: `(module, its file, the const, its type)`; a module's file
-/// also holds the straight-line code of the field's sparse models.
-const PARTS: [(&str, &str, &str, &str); 4] = [
-    ("egk", "egk.rs", "EGK", "[EgkParams; N_ALPHA]"),
-    ("pressure", "pressure.rs", "PRESSURE", "PressureModel"),
-    ("plant", "plant.rs", "PLANT", "[PlantParams; 2]"),
-    ("coupling", "coupling.rs", "COUPLING", "SparseModel"),
+/// file is a wall of a thousand lines: `(module, the const, its type)`; a module's file
+/// (`egk.rs`) also holds the straight-line code of the field's sparse models.
+const PARTS: [(&str, &str, &str); 4] = [
+    ("egk", "EGK", "[EgkParams; N_ALPHA]"),
+    ("pressure", "PRESSURE", "PressureModel"),
+    ("plant", "PLANT", "[PlantParams; 2]"),
+    ("coupling", "COUPLING", "SparseModel"),
 ];
 
 /// The types a generated file may name, with where they come from; a file imports those its
@@ -181,7 +181,7 @@ pub fn render(set: &CoefficientSet, provenance: &str) -> Result<Generated, Codeg
         literal::to_rust(&set.coupling)?,
     ];
     let mut parts = Vec::new();
-    for ((module, file, name, ty), value) in PARTS.iter().zip(&literals) {
+    for ((module, name, ty), value) in PARTS.iter().zip(&literals) {
         let functions: String = models
             .iter()
             .filter(|(of, ..)| of == module)
@@ -193,11 +193,11 @@ pub fn render(set: &CoefficientSet, provenance: &str) -> Result<Generated, Codeg
              not edit by hand.\n\n{}\n{code}",
             imports(&code)
         );
-        parts.push((*file, formatted(&source)?));
+        parts.push((format!("{module}.rs"), formatted(&source)?));
     }
     // The small fields stay in `mod.rs`; the large ones name their files' consts.
     let mut default = literal::to_rust(set)?;
-    for ((module, _, name, _), value) in PARTS.iter().zip(&literals) {
+    for ((module, name, _), value) in PARTS.iter().zip(&literals) {
         let field = format!("{module}: {value}");
         if !default.contains(&field) {
             return Err(CodegenError::Parse(format!("the field `{module}` is not in the set's literal")));
@@ -221,7 +221,7 @@ pub fn render(set: &CoefficientSet, provenance: &str) -> Result<Generated, Codeg
         imports(&code),
         functions.join(", "),
     );
-    let mut files = vec![(MODULE_FILE, formatted(&root)?)];
+    let mut files = vec![(MODULE_FILE.to_owned(), formatted(&root)?)];
     files.extend(parts);
     Ok(Generated { files })
 }
@@ -308,7 +308,7 @@ pub fn check(target: &Path, generated: &Generated, model: &str) -> Result<(), Co
         .filter(|name| name.ends_with(".rs"))
         .collect();
     committed.sort();
-    let mut expected: Vec<String> = generated.files.iter().map(|(name, _)| (*name).to_owned()).collect();
+    let mut expected: Vec<String> = generated.files.iter().map(|(name, _)| name.clone()).collect();
     expected.sort();
     if committed != expected {
         return Err(stale());
