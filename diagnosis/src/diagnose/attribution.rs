@@ -125,7 +125,8 @@ pub struct Slope {
 impl Slope {
     /// The slope of `sum r p` over `sum p^2`, its standard error from the noise's variance times
     /// the residual's integrated autocorrelation time (samples); NaN without a prediction.
-    fn from_sums(rp: f64, pp: f64, noise_var: f64, autocorrelation_time: f64) -> Self {
+    #[must_use]
+    pub fn from_sums(rp: f64, pp: f64, noise_var: f64, autocorrelation_time: f64) -> Self {
         if pp > 0.0 {
             Self { value: rp / pp, standard_error: (noise_var * autocorrelation_time.max(1.0) / pp).sqrt() }
         } else {

@@ -92,11 +92,26 @@ pub fn scan(
     if (common_lag.is_some() || !some.is_empty() || first_step_shows())
         && let Some(set) = super::lag_set::identify(runs).and_then(|lags| {
             let set = super::pressure_lag::channel_set(runs, reference, &lags, own_channel_lags, common_lag.is_some())?;
-            let mut lag_s = vec![0.0; n_taps];
-            for &(tap, lag) in &set {
-                lag_s[tap] = lag;
+            let lags_of = |set: &[(usize, f64)]| {
+                let mut lag_s = vec![0.0; n_taps];
+                for &(tap, lag) in set {
+                    lag_s[tap] = lag;
+                }
+                lag_s
+            };
+            let mut judged = super::lag_set::judged(runs, &lags_of(&set));
+            // Every channel named must show its own lag on the selection part; the others are
+            // judged again without the de-lag of those that do not.
+            let confirmed = confirmed_members(runs, &self::judged(&judged), &set);
+            let set: Vec<(usize, f64)> =
+                set.into_iter().zip(&confirmed).filter(|(_, ok)| **ok).map(|(m, _)| m).collect();
+            if set.is_empty() {
+                return None;
             }
-            set_finding(runs, &super::lag_set::judged(runs, &lag_s), &set, n_taps, reference_tau_s)
+            if confirmed.contains(&false) {
+                judged = super::lag_set::judged(runs, &lags_of(&set));
+            }
+            set_finding(runs, &judged, &set, n_taps, reference_tau_s)
         })
     {
         // The group the innovations found stays a candidate beside it: where the balance cannot
@@ -259,6 +274,10 @@ fn lag_findings<'a>(
         }
         None => alone.clone(),
     };
+    // Each member must show its own lag on the selection part.
+    let taus: Vec<(usize, f64)> = lagged.iter().map(|&(tap, tau_idx)| (tap, grid[tau_idx])).collect();
+    let confirmed = confirmed_members(runs, &judged, &taus);
+    lagged = lagged.into_iter().zip(confirmed).filter(|(_, ok)| *ok).map(|(member, _)| member).collect();
     if lagged.is_empty() {
         return Vec::new();
     }
@@ -306,6 +325,50 @@ fn set_finding(
     finding.delta_bic -= (1..=set.len()).map(|i| ((n_taps - set.len() + i) as f64 / i as f64).ln()).sum::<f64>();
     finding.params.push(("reference_tau_s".to_owned(), ParamValue::Number(reference_tau_s)));
     Some(finding)
+}
+
+/// Which members of a lagged set (`set`: each channel and its lag, s) show their own lag on the
+/// selection part: the member's innovation, judged with the other members de-lagged (`judged`),
+/// regressed on its lag column ([`lag_column`]) over the training part less the selection
+/// blocks, must fit a positive gain (a lag's reading follows the expected pressure late, never
+/// early), and the selection blocks' residual, regressed on that fitted prediction, must stand
+/// [`super::attribution::CONFIRM_Z`] standard errors above zero (the calibration slope of the
+/// balance candidates, [`super::attribution::Slope`]; its noise the innovation's mean square
+/// there, its correlation time the innovation's). The contract's report names every lagged
+/// channel, so each one needs its own evidence: the set is chosen from how the channels' lags
+/// differ, and where the pressure model fits a rig poorly a healthy channel's apparent lag
+/// moves with the lags around it.
+fn confirmed_members(runs: &[RunStreams], judged: &Judged<'_>, set: &[(usize, f64)]) -> Vec<bool> {
+    set.iter()
+        .map(|&(tap, tau_s)| {
+            let segments = segments_judged(runs, judged, tap);
+            let columns: Vec<Vec<Vec<f64>>> = runs
+                .iter()
+                .zip(judged)
+                .map(|(run, innovations)| vec![lag_column(run, innovations[tap], tap, tau_s)])
+                .collect();
+            let Some(fit) = regression::fit_through_origin(&segments, &columns) else { return false };
+            let gain = fit.beta[0];
+            let (mut rp, mut pp, mut rr, mut n) = (0.0, 0.0, 0.0, 0usize);
+            for (segment, cols) in segments.iter().zip(&columns) {
+                for i in segment.select.samples() {
+                    let (r, predicted) = (segment.residual[i], gain * cols[0][i]);
+                    if r.is_finite() && predicted.is_finite() {
+                        rp += r * predicted;
+                        pp += predicted * predicted;
+                        rr += r * r;
+                        n += 1;
+                    }
+                }
+            }
+            if n == 0 {
+                return false;
+            }
+            let autocorrelation = regression::integrated_autocorrelation(&segments, 50);
+            let slope = super::attribution::Slope::from_sums(rp, pp, rr / n as f64, autocorrelation);
+            gain > 0.0 && slope.confirmed()
+        })
+        .collect()
 }
 
 /// The key of a lag of `channel` alone in the sim's signature ([`Findings::channel_lags`]).

@@ -477,6 +477,33 @@ fn a_lag_of_some_channels_names_exactly_those_channels() {
     }
 }
 
+/// cp02 and cp05 read through a 20 ms lag; a set that also holds the healthy cp08 (an apparent
+/// lag from the lags around it) keeps the two whose innovations follow their lag on the
+/// selection blocks, and not cp08, whose innovation is the noise alone.
+#[test]
+fn a_set_member_without_its_own_lag_on_the_selection_part_is_dropped() {
+    let tau_s = 0.02;
+    let run = lagged(13, &[1, 4], tau_s);
+    let runs = std::slice::from_ref(&run);
+    let judged: Judged<'_> = vec![run.innovation_alone.iter().map(Vec::as_slice).collect()];
+    assert_eq!(confirmed_members(runs, &judged, &[(1, tau_s), (4, tau_s), (7, tau_s)]), [true, true, false]);
+}
+
+/// A channel that reads early (its innovation the negative of a lag's) is no lagged channel,
+/// however clearly its innovation follows the column: a lag's gain is positive.
+#[test]
+fn a_channel_that_reads_early_is_no_lagged_member() {
+    let tau_s = 0.02;
+    let run = recording(14, move |tap, idx, noise| {
+        let t_s = idx as f64 / HZ;
+        let (unlagged, lagged) = (pressure(tap, t_s, 0.0), pressure(tap, t_s, tau_s));
+        unlagged - if tap == 4 { lagged - unlagged } else { 0.0 } + noise
+    });
+    let runs = std::slice::from_ref(&run);
+    let judged: Judged<'_> = vec![run.innovation_alone.iter().map(Vec::as_slice).collect()];
+    assert_eq!(confirmed_members(runs, &judged, &[(4, tau_s)]), [false]);
+}
+
 /// A deviation that grows slower than any lag searched (cp05 reads the pressure plus a
 /// fifth of what a 5 s lag would take off it, a slow change of its scale) has its best fit at
 /// the grid's longest time constant: no lag of cp05 is named.
