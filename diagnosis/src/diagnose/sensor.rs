@@ -7,7 +7,7 @@ use firmware_sim::effect::Effect;
 
 use super::faults;
 use super::finding::{ParamValue, SensorFinding, channel_name, strength};
-use super::regression::{self, Segment, delta_bic};
+use super::regression::{self, Fit, Segment, delta_bic};
 use super::streams::RunStreams;
 
 /// Shortest run of identical raw readings that counts as a stuck channel, s: a live transducer
@@ -206,6 +206,41 @@ fn lag_column(run: &RunStreams, innovation: &[f64], tap: usize, tau_s: f64) -> V
     lagged.iter().zip(&held).map(|(l, e)| l - e).collect()
 }
 
+/// The lag column of one channel from its own reading: `-tau y'`, the deviation of a reading
+/// `y` lagged by `tau` from the true pressure, exactly (`p = y + tau y'`; [`RunStreams::cp_dot`],
+/// 0 where the channel is missing).
+fn reading_lag_column(run: &RunStreams, tap: usize, tau_s: f64) -> Vec<f64> {
+    run.cp_dot[tap].iter().map(|dy| if dy.is_finite() { -tau_s * dy } else { 0.0 }).collect()
+}
+
+/// A member's lag column in every run and its fit to the member's judged innovation over the
+/// training part less the selection blocks: of two estimates of the lag's deviation `-tau p'`,
+/// the one that explains more there.
+///
+/// Why two: each carries its own error, and which is smaller depends on the rig. What the other
+/// channels expect ([`lag_column`]) carries their noise and the pressure model's error through
+/// the lag's high-pass; on a rig the model fits poorly its gain came out 0.1 to 0.4 for channels
+/// lagged by tens of milliseconds (errors in variables). The channel's own reading
+/// ([`reading_lag_column`]) carries only its own noise, differentiated; on this project's tunnel,
+/// whose model fits well and whose weaker channels hold little signal, its gains came out 0.06 to
+/// 0.6 for a lag of every channel, where the expectation gave 0.95 to 1.05. The choice is made on
+/// the training part; the selection part confirms it ([`confirmed_members`]).
+fn member_column(
+    runs: &[RunStreams],
+    judged: &Judged<'_>,
+    tap: usize,
+    tau_s: f64,
+) -> Option<(Vec<Vec<Vec<f64>>>, Fit)> {
+    let segments = segments_judged(runs, judged, tap);
+    let expected: Vec<Vec<Vec<f64>>> =
+        runs.iter().zip(judged).map(|(run, nu)| vec![lag_column(run, nu[tap], tap, tau_s)]).collect();
+    let reading: Vec<Vec<Vec<f64>>> = runs.iter().map(|run| vec![reading_lag_column(run, tap, tau_s)]).collect();
+    [expected, reading]
+        .into_iter()
+        .filter_map(|columns| regression::fit_through_origin(&segments, &columns).map(|fit| (columns, fit)))
+        .min_by(|a, b| a.1.ssr.total_cmp(&b.1.ssr))
+}
+
 /// Most refinements of the lagged group: each runs the filter once without the group and once
 /// more without the group and each channel outside it.
 const GROUP_REFINEMENTS: usize = 3;
@@ -313,10 +348,12 @@ fn set_finding(
     let judged: Judged<'_> = judged.iter().map(|run| run.iter().map(Vec::as_slice).collect()).collect();
     let (mut segments, mut columns) = (Vec::new(), Vec::new());
     for (slot, &(tap, tau_s)) in set.iter().enumerate() {
+        let (own, _) = member_column(runs, &judged, tap, tau_s)?;
         segments.extend(segments_judged(runs, &judged, tap));
-        columns.extend(runs.iter().zip(&judged).map(|(run, innovations)| {
-            let own = lag_column(run, innovations[tap], tap, tau_s);
-            (0..set.len()).map(|s| if s == slot { own.clone() } else { vec![0.0; own.len()] }).collect::<Vec<_>>()
+        columns.extend(own.into_iter().map(|mut run| {
+            let own = run.swap_remove(0);
+            let zeros = vec![0.0; own.len()];
+            (0..set.len()).map(|s| if s == slot { own.clone() } else { zeros.clone() }).collect::<Vec<_>>()
         }));
     }
     let fit = regression::fit_through_origin(&segments, &columns)?;
@@ -329,9 +366,10 @@ fn set_finding(
 
 /// Which members of a lagged set (`set`: each channel and its lag, s) show their own lag on the
 /// selection part: the member's innovation, judged with the other members de-lagged (`judged`),
-/// regressed on its lag column ([`lag_column`]) over the training part less the selection
-/// blocks, must fit a positive gain (a lag's reading follows the expected pressure late, never
-/// early), and the selection blocks' residual, regressed on that fitted prediction, must stand
+/// regressed on its lag column ([`member_column`]) over the training part less the selection
+/// blocks, must fit a gain that makes the lag it shows (gain times time constant) at least the
+/// least lag of a channel ([`super::pressure_lag::MIN_CHANNEL_LAG_S`]; positive: a lag's reading
+/// follows the pressure late, never early), and the selection blocks' residual, regressed on that fitted prediction, must stand
 /// [`super::attribution::CONFIRM_Z`] standard errors above zero (the calibration slope of the
 /// balance candidates, [`super::attribution::Slope`]; its noise the innovation's mean square
 /// there, its correlation time the innovation's). The contract's report names every lagged
@@ -342,12 +380,7 @@ fn confirmed_members(runs: &[RunStreams], judged: &Judged<'_>, set: &[(usize, f6
     set.iter()
         .map(|&(tap, tau_s)| {
             let segments = segments_judged(runs, judged, tap);
-            let columns: Vec<Vec<Vec<f64>>> = runs
-                .iter()
-                .zip(judged)
-                .map(|(run, innovations)| vec![lag_column(run, innovations[tap], tap, tau_s)])
-                .collect();
-            let Some(fit) = regression::fit_through_origin(&segments, &columns) else { return false };
+            let Some((columns, fit)) = member_column(runs, judged, tap, tau_s) else { return false };
             let gain = fit.beta[0];
             let (mut rp, mut pp, mut rr, mut n) = (0.0, 0.0, 0.0, 0usize);
             for (segment, cols) in segments.iter().zip(&columns) {
@@ -366,7 +399,7 @@ fn confirmed_members(runs: &[RunStreams], judged: &Judged<'_>, set: &[(usize, f6
             }
             let autocorrelation = regression::integrated_autocorrelation(&segments, 50);
             let slope = super::attribution::Slope::from_sums(rp, pp, rr / n as f64, autocorrelation);
-            gain > 0.0 && slope.confirmed()
+            gain * tau_s >= super::pressure_lag::MIN_CHANNEL_LAG_S && slope.confirmed()
         })
         .collect()
 }

@@ -515,7 +515,7 @@ pub(crate) fn synthetic_run(sample_hz: f64, cp: Vec<Vec<f64>>, innovation: Vec<V
         coupling: zeros.clone(),
         cl_measured: zeros.clone(),
         residual: zeros.clone(),
-        cp_dot: cp.iter().map(|_| zeros.clone()).collect(),
+        cp_dot: cp.iter().map(|channel| pressure_derivative(channel, sample_hz)).collect(),
         cp,
         innovation_alone: innovation.clone(),
         departure_alone: innovation.clone(),

@@ -478,8 +478,8 @@ fn a_lag_of_some_channels_names_exactly_those_channels() {
 }
 
 /// cp02 and cp05 read through a 20 ms lag; a set that also holds the healthy cp08 (an apparent
-/// lag from the lags around it) keeps the two whose innovations follow their lag on the
-/// selection blocks, and not cp08, whose innovation is the noise alone.
+/// lag from the lags around it) keeps the two whose innovations follow their lag, `-tau y'`, on
+/// the selection blocks, and not cp08, whose innovation is the noise alone.
 #[test]
 fn a_set_member_without_its_own_lag_on_the_selection_part_is_dropped() {
     let tau_s = 0.02;
@@ -490,7 +490,8 @@ fn a_set_member_without_its_own_lag_on_the_selection_part_is_dropped() {
 }
 
 /// A channel that reads early (its innovation the negative of a lag's) is no lagged channel,
-/// however clearly its innovation follows the column: a lag's gain is positive.
+/// however clearly its innovation follows the column: a lag's gain is positive, and the lag it
+/// shows, gain times time constant, at least the least lag of a channel.
 #[test]
 fn a_channel_that_reads_early_is_no_lagged_member() {
     let tau_s = 0.02;
