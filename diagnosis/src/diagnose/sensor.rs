@@ -369,10 +369,10 @@ fn set_finding(
 /// regressed on its lag column ([`member_column`]) over the training part less the selection
 /// blocks, must fit a gain that makes the lag it shows (gain times time constant) at least the
 /// least lag of a channel ([`super::pressure_lag::MIN_CHANNEL_LAG_S`]; positive: a lag's reading
-/// follows the pressure late, never early), and the selection blocks' residual, regressed on that fitted prediction, must stand
-/// [`super::attribution::CONFIRM_Z`] standard errors above zero (the calibration slope of the
-/// balance candidates, [`super::attribution::Slope`]; its noise the innovation's mean square
-/// there, its correlation time the innovation's). The contract's report names every lagged
+/// follows the pressure late, never early), and the selection blocks' residual, regressed on
+/// that fitted prediction, must stand [`super::attribution::CONFIRM_Z`] standard errors above
+/// zero (the calibration slope of the balance candidates, [`super::attribution::Slope`]; its
+/// noise the innovation's mean square there, its correlation time the innovation's). The contract's report names every lagged
 /// channel, so each one needs its own evidence: the set is chosen from how the channels' lags
 /// differ, and where the pressure model fits a rig poorly a healthy channel's apparent lag
 /// moves with the lags around it.
