@@ -372,10 +372,10 @@ fn set_finding(
 /// follows the pressure late, never early), and the selection blocks' residual, regressed on
 /// that fitted prediction, must stand [`super::attribution::CONFIRM_Z`] standard errors above
 /// zero (the calibration slope of the balance candidates, [`super::attribution::Slope`]; its
-/// noise the innovation's mean square there, its correlation time the innovation's). The contract's report names every lagged
-/// channel, so each one needs its own evidence: the set is chosen from how the channels' lags
-/// differ, and where the pressure model fits a rig poorly a healthy channel's apparent lag
-/// moves with the lags around it.
+/// noise the innovation's mean square there, its correlation time the innovation's). The
+/// contract's report names every lagged channel, so each one needs its own evidence: the set is
+/// chosen from how the channels' lags differ, and where the pressure model fits a rig poorly a
+/// healthy channel's apparent lag moves with the lags around it.
 fn confirmed_members(runs: &[RunStreams], judged: &Judged<'_>, set: &[(usize, f64)]) -> Vec<bool> {
     set.iter()
         .map(|&(tap, tau_s)| {
