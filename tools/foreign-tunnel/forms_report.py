@@ -13,7 +13,10 @@ Prints:
   vocabulary: verdict unattributed; otherwise the injected name ranked first, and for a
   sensor effect its channels among the named ones), and the scorer's own `correct` count;
 - a parameter-recovery table: per class and parameter, the median relative error
-  |diagnosed - true| / |true| over the cases whose first named effect is the injected one.
+  |diagnosed - true| / |true| over the cases whose first named effect is the injected one,
+  and the share within 20 %. A pressure lag's `tau_s_by_channel` is scored per channel: each
+  lagged channel the diagnosis named, its `tau_s_<channel>` against its own time constant (the
+  "cases" column then counts channels).
   The true values are the truth's `recover`; the diagnosed ones are each case's first named
   effect's params, read from the record's `named_params` (the first named effect's
   {param: value}, as host-tools validate-diagnosis writes it; or a list aligned with `named`)
@@ -104,6 +107,12 @@ def main():
             for key, true in truth.get("recover", {}).items():
                 if isinstance(true, (int, float)) and key in got and true != 0:
                     errors[(effect, key)].append(abs(got[key] - true) / abs(true))
+                elif key == "tau_s_by_channel" and isinstance(true, dict):
+                    # Each lagged channel the diagnosis named, against its own time constant.
+                    for channel, tau_s in true.items():
+                        if f"tau_s_{channel}" in got and tau_s:
+                            error = abs(got[f"tau_s_{channel}"] - tau_s) / abs(tau_s)
+                            errors[(effect, "tau_s per channel")].append(error)
 
     print(f"{'form':48s} {'cases':>5s} {'first right':>11s} {'scorer right':>12s}")
     totals = [0, 0, 0]
@@ -119,10 +128,11 @@ def main():
         print("parameter recovery: validation.json keeps no diagnosed params (a per-case `named_params`, "
               "the params of each named effect aligned with `named`, is needed); table skipped")
         return
-    print(f"{'class':20s} {'param':24s} {'cases':>5s} {'median rel. error':>18s}")
+    print(f"{'class':20s} {'param':24s} {'cases':>5s} {'median rel. error':>18s} {'within 20 %':>11s}")
     for (effect, key) in sorted(errors):
         e = errors[(effect, key)]
-        print(f"{effect:20s} {key:24s} {len(e):5d} {statistics.median(e):18.3f}")
+        within = sum(error <= 0.2 for error in e) / len(e)
+        print(f"{effect:20s} {key:24s} {len(e):5d} {statistics.median(e):18.3f} {100 * within:10.1f}%")
 
 
 if __name__ == "__main__":
