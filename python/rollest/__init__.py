@@ -349,7 +349,8 @@ class Diagnosis:
 
     @property
     def verdict(self) -> str:
-        """``none``, ``named`` or ``unexplained`` (see the contract)."""
+        """``effect`` (an effect is named), ``none`` (the gap is at the noise floor) or
+        ``unattributed`` (a real gap no effect explains): the words of docs/spec/diagnosis.md."""
         return str(self.results["verdict"])
 
 
