@@ -40,18 +40,30 @@ pub struct Profiled {
     /// Where the selection part holds too little of the effect to confirm even the fitted
     /// effect itself: the training part cross-validated instead.
     pub cross_validation: Option<CrossValidation>,
+    /// The best form lies at an end of what the family profiles beyond the effect's range
+    /// ([`super::candidates::BalanceCandidate::beyond_its_range`]): the fit is another effect's.
+    pub beyond_its_range: bool,
 }
 
 impl Profiled {
-    /// Whether the fitted gains are those of the effect its name stands for: an effect that
-    /// keeps the sim's static gain ([`super::candidates::BalanceCandidate::unit_gain`]) must fit
-    /// gains within [`super::candidates::UNIT_GAIN_RANGE`]. A "delay" of 3 ms at eleven times
-    /// the plant's moment is the derivative of that moment (a mode the blowing rings), not a
-    /// pneumatic line.
+    /// Whether the fit is the effect its name stands for.
+    ///
+    /// - Its best form lies inside what the family profiles ([`Self::beyond_its_range`]): a slow
+    ///   state at the longest time constant searched is the static term of its drive (of the
+    ///   roll rate, a linear roll damping).
+    /// - An effect that keeps the sim's static gain
+    ///   ([`super::candidates::BalanceCandidate::unit_gain`]) fits gains within
+    ///   [`super::candidates::UNIT_GAIN_RANGE`]. A "delay" of 3 ms at eleven times the plant's
+    ///   moment is the derivative of that moment (a mode the blowing rings), not a pneumatic
+    ///   line.
+    ///
+    /// An implausible fit is never named, but it stays in the ranking and in the sim's
+    /// signature: what it takes of the sim's own error is still a floor.
     #[must_use]
     pub fn plausible(&self) -> bool {
         let (low, high) = super::candidates::UNIT_GAIN_RANGE;
-        !self.candidate.unit_gain() || self.fit.beta.iter().all(|gain| (low..=high).contains(gain))
+        !self.beyond_its_range
+            && (!self.candidate.unit_gain() || self.fit.beta.iter().all(|gain| (low..=high).contains(gain)))
     }
 
     /// Mean square explained per touched training sample.
@@ -348,6 +360,7 @@ pub fn profile(
         active_share: fit_share,
         selection_active_share: selection_share,
         cross_validation,
+        beyond_its_range: candidate.beyond_its_range(&form.shape, context),
     })
 }
 

@@ -550,6 +550,7 @@ mod tests {
             active_share: 1.0,
             selection_active_share: 1.0,
             cross_validation: None,
+            beyond_its_range: false,
         };
         let summary = CandidateSummary::from_profiled(0.01)(&profiled);
         assert_eq!(summary.name, "actuator_delay");

@@ -76,6 +76,7 @@ fn profiled(candidate: Candidate, removed: f64, delta_bic: f64) -> Profiled {
         active_share: 1.0,
         selection_active_share: 1.0,
         cross_validation: None,
+        beyond_its_range: false,
     }
 }
 

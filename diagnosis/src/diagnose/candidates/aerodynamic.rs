@@ -19,7 +19,9 @@ pub struct RollDamping;
 /// `vortex_lag`: a second, slower flow state, tau from 30 ms (no shorter than
 /// [`Context::slow_tau_min_s`], twice the eGK's lag) to 50 times the eGK's lag (at least 5 s),
 /// driven by a motion variable or by the vortex state itself, at every angle of attack or from
-/// one angle upward (a breakdown that sets in above an angle).
+/// one angle upward (a breakdown that sets in above an angle). The time constants are profiled
+/// up to a factor [`SLOW_SEARCH_MARGIN`] beyond that range, and a best form at the longest is
+/// no slow state ([`BalanceCandidate::beyond_its_range`]).
 #[derive(Debug, Clone, Copy)]
 pub struct VortexLag;
 
@@ -78,19 +80,36 @@ impl BalanceCandidate for RollDamping {
     }
 }
 
-impl VortexLag {
-    /// Points of the coarse grid of time constants.
-    const COARSE: usize = 16;
+/// How far beyond the longest time constant of the contract's range the vortex lag's time
+/// constants are profiled, as a factor. A best form at the longest searched is no slow state:
+/// the state no longer moves with the motion, and its deficit `LP_tau[u] - u` is the drive's
+/// own static term, `-u` (of the roll rate, a linear roll damping; of the eGK's moment, a change
+/// of its gain). Two: an octave, so that a state at the contract's longest has its best fit
+/// inside the search. The shortest has no such rule: it is twice the sim's eGK lag, and a rig's
+/// own lift lag can be shorter, so a state of the contract's range can have its best fit there.
+pub const SLOW_SEARCH_MARGIN: f64 = 2.0;
 
-    /// The time constants' range, s: from 30 ms and twice the eGK's lag to 50 times the eGK's lag
-    /// (the contract's "2 to 50 times slower"), at least 5 s.
+impl VortexLag {
+    /// Points of the coarse grid of time constants: 19 over the search's factor of 50 or more,
+    /// the spacing that 16 gave over the contract's factor of 25.
+    const COARSE: usize = 19;
+
+    /// The contract's range of time constants, s: from 30 ms and twice the eGK's lag to 50
+    /// times the eGK's lag ("2 to 50 times slower"), at least 5 s.
     fn tau_range(context: &Context<'_>) -> (f64, f64) {
         let low = 0.03f64.max(context.slow_tau_min_s);
         (low, 5.0f64.max(25.0 * context.slow_tau_min_s))
     }
 
-    fn taus(context: &Context<'_>, n: usize) -> Vec<f64> {
+    /// The time constants profiled, s: the contract's range, its longest widened by
+    /// [`SLOW_SEARCH_MARGIN`].
+    fn search_range(context: &Context<'_>) -> (f64, f64) {
         let (low, high) = Self::tau_range(context);
+        (low, high * SLOW_SEARCH_MARGIN)
+    }
+
+    fn taus(context: &Context<'_>, n: usize) -> Vec<f64> {
+        let (low, high) = Self::search_range(context);
         log_grid(low, high, n)
     }
 }
@@ -145,11 +164,18 @@ impl BalanceCandidate for VortexLag {
 
     fn refine(&self, best: &Shape, _sample_hz: f64, context: &Context<'_>) -> Vec<Shape> {
         let Shape::SlowState { tau_s, drive, law, at_alpha_deg } = *best else { return Vec::new() };
-        let (low, high) = Self::tau_range(context);
+        let (low, high) = Self::search_range(context);
         super::around(tau_s, super::grid_ratio(low, high, Self::COARSE), 7, low, high)
             .into_iter()
             .map(|tau_s| Shape::SlowState { tau_s, drive, law, at_alpha_deg })
             .collect()
+    }
+
+    /// At the longest time constant searched ([`SLOW_SEARCH_MARGIN`]): a static term of the
+    /// drive, not a slower state.
+    fn beyond_its_range(&self, shape: &Shape, context: &Context<'_>) -> bool {
+        let Shape::SlowState { tau_s, .. } = *shape else { return false };
+        tau_s >= Self::search_range(context).1 * (1.0 - 1e-9)
     }
 
     /// A second, slower flow state (docs/diagnosis.md, Vortex lag, G9), in the forms a
@@ -319,6 +345,16 @@ mod tests {
     /// The vortex-lag form that fits `truth` best by least squares: its residual sum of
     /// squares, shape and coefficients.
     fn best_vortex_form(run: &RunStreams, truth: &[f64], context: &Context<'_>) -> (f64, Shape, Vec<f64>) {
+        best_vortex_form_among(run, truth, context, |_| true)
+    }
+
+    /// [`best_vortex_form`] among the coarse forms `keep` keeps.
+    fn best_vortex_form_among(
+        run: &RunStreams,
+        truth: &[f64],
+        context: &Context<'_>,
+        keep: impl Fn(&Shape) -> bool,
+    ) -> (f64, Shape, Vec<f64>) {
         let fit = |shape: Shape| {
             let columns = VortexLag.columns(&shape, run, 0, context);
             let coef = test_fit(&columns, truth);
@@ -328,16 +364,17 @@ mod tests {
             (sse, shape, coef)
         };
         let best = |fits: Vec<(f64, Shape, Vec<f64>)>| fits.into_iter().min_by(|a, b| a.0.total_cmp(&b.0));
-        let coarse = best(VortexLag.shapes(run.sample_hz, context).into_iter().map(fit).collect()).expect("forms");
+        let coarse =
+            best(VortexLag.shapes(run.sample_hz, context).into_iter().filter(keep).map(fit).collect()).expect("forms");
         let finer: Vec<_> = VortexLag.refine(&coarse.1, run.sample_hz, context).into_iter().map(fit).collect();
         best(finer).filter(|fine| fine.0 <= coarse.0).unwrap_or(coarse)
     }
 
-    /// Every vortex-lag form is slower than the context's floor and at most 5 s, and each time
-    /// constant comes with every drive; the vortex state drives only the state law (its
-    /// deficit is the family's first column).
+    /// The vortex-lag forms reach from the context's floor to an octave beyond the contract's
+    /// longest (twice 5 s), and each time constant comes with every drive; the vortex state
+    /// drives only the state law (its deficit is the family's first column).
     #[test]
-    fn vortex_lag_forms_are_slow_and_cover_every_drive() {
+    fn vortex_lag_forms_reach_beyond_the_range_and_cover_every_drive() {
         let context = test_context();
         let shapes = VortexLag.shapes(200.0, &context);
         let taus: Vec<f64> = shapes
@@ -347,8 +384,10 @@ mod tests {
                 other => panic!("not a slow state: {other:?}"),
             })
             .collect();
-        assert!(taus.iter().all(|tau| (context.slow_tau_min_s..=5.0 + 1e-9).contains(tau)));
-        assert!(taus.iter().any(|tau| (tau - 5.0).abs() < 1e-9), "reaches 5 s");
+        let (low, high) = (context.slow_tau_min_s, 10.0);
+        assert!(taus.iter().all(|tau| (low - 1e-9..=high + 1e-9).contains(tau)));
+        assert!(taus.iter().any(|tau| (tau - low).abs() < 1e-9), "reaches the floor");
+        assert!(taus.iter().any(|tau| (tau - high).abs() < 1e-9), "reaches 10 s");
         let count = |drive: Drive, law: SlowLaw| {
             shapes
                 .iter()
@@ -394,12 +433,38 @@ mod tests {
         let Shape::SlowState { tau_s, drive, law, at_alpha_deg } = best.1 else { unreachable!() };
         assert_eq!((drive, law, at_alpha_deg), (Drive::Sideslip, SlowLaw::State, None));
         // Within one step of the refined grid (a coarse cell either side in six steps).
-        let (low, high) = VortexLag::tau_range(&context);
+        let (low, high) = VortexLag::search_range(&context);
         let fine_step = 2.0 * (high / low).ln() / (VortexLag::COARSE - 1) as f64 / 6.0;
         assert!((tau_s / 0.8).ln().abs() < fine_step, "tau {tau_s}");
         let params = VortexLag.params(&best.1, &best.2, &context, &[]);
         assert_eq!(params[1].0, "per_rad_sideslip");
         assert!((params[1].1 - 0.02).abs() < 0.004, "{params:?}");
+    }
+
+    /// A linear roll damping, `-0.05 p_hat`, is the static term the rate's deficit tends to as
+    /// its state stops following the motion: that law's best fit lies at the longest time
+    /// constant searched, beyond the family's range. A rate state of the contract's range,
+    /// `0.5 (LP_0.6s[p_hat] - p_hat)`, has its best fit inside it.
+    #[test]
+    fn a_static_rate_term_is_beyond_the_slow_states_range() {
+        let context = test_context();
+        let mut run = rolling_run(6000);
+        // A motion that starts at rest (no start-up transient of a long state), and an eGK
+        // moment of its own motion (what its deficit column takes is no rate term).
+        let t_s: Vec<f64> = (0..run.len()).map(|i| i as f64 / run.sample_hz).collect();
+        run.phi_rad = t_s.iter().map(|t| -0.5 * (1.3 * t).cos() - 0.2 * (4.1 * t).cos()).collect();
+        run.phi_dot_rad_s = t_s.iter().map(|t| 0.65 * (1.3 * t).sin() + 0.82 * (4.1 * t).sin()).collect();
+        run.cl_egk = t_s.iter().map(|t| 0.01 * (2.3 * t).sin()).collect();
+        let p_hat = context.p_hat(&run);
+        let rate_deficit =
+            |shape: &Shape| matches!(shape, Shape::SlowState { drive: Drive::RollRate, law: SlowLaw::Deficit, .. });
+        let damping: Vec<f64> = p_hat.iter().map(|p| -0.05 * p).collect();
+        let best = best_vortex_form_among(&run, &damping, &context, rate_deficit);
+        assert!(VortexLag.beyond_its_range(&best.1, &context), "{:?}", best.1);
+        let lagged = first_order_lag(&p_hat, 0.6, 1.0 / run.sample_hz);
+        let state: Vec<f64> = lagged.iter().zip(&p_hat).map(|(l, p)| 0.5 * (l - p)).collect();
+        let best = best_vortex_form_among(&run, &state, &context, rate_deficit);
+        assert!(!VortexLag.beyond_its_range(&best.1, &context), "{:?}", best.1);
     }
 
     /// A state driven by the rate that acts as its deficit, `0.5 (LP_0.6s[p_hat] - p_hat)`, is

@@ -75,6 +75,13 @@ pub trait BalanceCandidate: Sync + fmt::Debug {
         Vec::new()
     }
 
+    /// Whether `shape`, the family's best form, lies at an end of what the family profiles
+    /// beyond the contract's range of the effect: the data then prefer a form further out, which
+    /// is another effect, and the family finds nothing.
+    fn beyond_its_range(&self, _shape: &Shape, _context: &Context<'_>) -> bool {
+        false
+    }
+
     /// The regression columns of `shape` for run number `run_idx`, one gain each; every column
     /// has the run's length and is zero where the effect cannot act (e.g. no blowing).
     fn columns(&self, shape: &Shape, run: &RunStreams, run_idx: usize, context: &Context<'_>) -> Vec<Vec<f64>>;
@@ -780,13 +787,17 @@ pub(crate) fn test_context() -> Context<'static> {
     }
 }
 
-/// Least squares of `target` on `columns` (normal equations, for the candidates' unit tests).
+/// Least squares of `target` on `columns` (normal equations solved by SVD, for the candidates'
+/// unit tests: the minimum-norm solution where a test run makes two columns proportional, as
+/// a roll angle and an eGK moment that is a multiple of it).
 #[cfg(test)]
 pub(crate) fn test_fit(columns: &[Vec<f64>], target: &[f64]) -> Vec<f64> {
     let k = columns.len();
-    let gram = nalgebra::DMatrix::from_fn(k, k, |i, j| columns[i].iter().zip(&columns[j]).map(|(a, b)| a * b).sum());
+    let gram: nalgebra::DMatrix<f64> =
+        nalgebra::DMatrix::from_fn(k, k, |i, j| columns[i].iter().zip(&columns[j]).map(|(a, b)| a * b).sum());
     let rhs = nalgebra::DVector::from_fn(k, |i, _| columns[i].iter().zip(target).map(|(a, b)| a * b).sum());
-    gram.lu().solve(&rhs).expect("regular test columns").iter().copied().collect()
+    let scale = gram.diagonal().max().max(f64::MIN_POSITIVE);
+    gram.svd(true, true).solve(&rhs, 1e-12 * scale).expect("both factors computed").iter().copied().collect()
 }
 
 #[cfg(test)]
