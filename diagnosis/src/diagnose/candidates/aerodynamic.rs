@@ -20,7 +20,7 @@ pub struct RollDamping;
 /// [`Context::slow_tau_min_s`], twice the eGK's lag) to 50 times the eGK's lag (at least 5 s),
 /// driven by a motion variable or by the vortex state itself, at every angle of attack or from
 /// one angle upward (a breakdown that sets in above an angle). The time constants are profiled
-/// up to a factor [`SLOW_SEARCH_MARGIN`] beyond that range, and a best form at the longest is
+/// up to a factor `SLOW_SEARCH_MARGIN` beyond that range, and a best form at the longest is
 /// no slow state ([`BalanceCandidate::beyond_its_range`]).
 #[derive(Debug, Clone, Copy)]
 pub struct VortexLag;
@@ -102,7 +102,7 @@ impl VortexLag {
     }
 
     /// The time constants profiled, s: the contract's range, its longest widened by
-    /// [`SLOW_SEARCH_MARGIN`].
+    /// `SLOW_SEARCH_MARGIN`.
     fn search_range(context: &Context<'_>) -> (f64, f64) {
         let (low, high) = Self::tau_range(context);
         (low, high * SLOW_SEARCH_MARGIN)
@@ -171,7 +171,7 @@ impl BalanceCandidate for VortexLag {
             .collect()
     }
 
-    /// At the longest time constant searched ([`SLOW_SEARCH_MARGIN`]): a static term of the
+    /// At the longest time constant searched (`SLOW_SEARCH_MARGIN`): a static term of the
     /// drive, not a slower state.
     fn beyond_its_range(&self, shape: &Shape, context: &Context<'_>) -> bool {
         let Shape::SlowState { tau_s, .. } = *shape else { return false };
