@@ -77,7 +77,8 @@ pub trait BalanceCandidate: Sync + fmt::Debug {
 
     /// Whether `shape`, the family's best form, lies at an end of what the family profiles
     /// beyond the contract's range of the effect: the data then prefer a form further out, which
-    /// is another effect, and the family finds nothing.
+    /// is another effect, so the fit is never named
+    /// ([`crate::diagnose::attribution::Profiled::plausible`]).
     fn beyond_its_range(&self, _shape: &Shape, _context: &Context<'_>) -> bool {
         false
     }
