@@ -115,9 +115,9 @@ impl Profiled {
     }
 }
 
-/// How many of a family's leading coarse forms are refined ([`candidates::BalanceCandidate::refine`]):
-/// more than one, because neighbouring optima of a coarse grid (two modes, a delay and its
-/// alias) can swap order on the fine one.
+/// How many of a family's leading coarse forms are refined ([`candidates::BalanceCandidate::refine`]),
+/// besides the best of every other kind of form: more than one, because neighbouring optima of
+/// a coarse grid (two modes, a delay and its alias) can swap order on the fine one.
 const REFINED_LEADERS: usize = 3;
 
 /// Standard errors above zero the selection part's calibration slope must stand for the fitted
@@ -307,11 +307,20 @@ pub fn profile(
     // The family's own refinement around its leading coarse forms: a fine grid only where the
     // coarse one points, so that a narrow optimum (a lightly damped mode, a delay) is found
     // without profiling the fine grid everywhere.
-    let mut leaders: Vec<&(Form, Fit, f64)> = fits.iter().collect();
-    leaders.sort_by(|a, b| b.2.total_cmp(&a.2));
+    let mut ranked: Vec<&(Form, Fit, f64)> = fits.iter().collect();
+    ranked.sort_by(|a, b| b.2.total_cmp(&a.2));
+    let mut leaders: Vec<&(Form, Fit, f64)> = ranked.iter().take(REFINED_LEADERS).copied().collect();
+    // The best of every kind of form is refined too: the leaders of one kind (neighbouring
+    // first-order lags) can fill the places, and a second-order valve whose coarse grid falls
+    // between its optimum's neighbours would never be looked at near its optimum.
+    for fit in &ranked {
+        if !leaders.iter().any(|leader| std::mem::discriminant(&leader.0.shape) == std::mem::discriminant(&fit.0.shape))
+        {
+            leaders.push(fit);
+        }
+    }
     let finer: Vec<Form> = leaders
         .iter()
-        .take(REFINED_LEADERS)
         .flat_map(|(form, _, _)| {
             candidate
                 .refine(&form.shape, sample_hz, context)

@@ -1,6 +1,7 @@
-//! Least squares of a residual stream on candidate columns, pooled over runs, with a per-run
-//! intercept as nuisance (removed by centring each run's training part: Frisch-Waugh-Lovell),
-//! and the held-out gap before and after the fitted effect.
+//! Least squares of a residual stream on candidate columns, pooled over runs, through the
+//! origin (a run's offset is part of the gap: docs/diagnosis.md, Three parts of every run) or
+//! with a per-run intercept as nuisance (removed by centring each run's training part:
+//! Frisch-Waugh-Lovell), and the held-out gap before and after the fitted effect.
 
 use nalgebra::{DMatrix, DVector};
 

@@ -20,8 +20,8 @@ use crate::diagnose::streams::RunStreams;
 pub struct ActuatorDelay;
 
 /// `actuator_lag`: the plant driven by a unit-gain low-pass of Cmu (first order, tau 5 ms to
-/// 0.5 s, one jet or both; second order with real or lightly damped poles), or by a rate-limited
-/// valve.
+/// 0.5 s; second order with real or lightly damped poles), or by a rate-limited valve, each on
+/// one jet or both (a valve is each jet's own).
 #[derive(Debug, Clone, Copy)]
 pub struct ActuatorLag;
 
@@ -132,7 +132,7 @@ impl ActuatorLag {
 
 impl BalanceCandidate for ActuatorLag {
     fn regressors(&self) -> &'static str {
-        "the sim's plant re-run on the recorded Cmu through a unit-gain low-pass (first order per jet, second order) or a rate limit, less its moment"
+        "the sim's plant re-run on the recorded Cmu of one jet or both through a unit-gain low-pass (first or second order) or a rate limit, less its moment"
     }
 
     fn effect(&self) -> Option<Effect> {
@@ -159,10 +159,12 @@ impl BalanceCandidate for ActuatorLag {
             .iter()
             .flat_map(|&jets| first.iter().map(move |&tau_s| Shape::Lag { tau_s, jets }))
             .collect();
-        for tau_s in log_grid(low, LAG_RANGE_S.1, Self::VALVE_COARSE) {
-            shapes.extend(VALVE_ZETA_COARSE.map(|zeta| Shape::SecondOrderLag { tau_s, zeta }));
-            // A full stroke as fast as the time constants span.
-            shapes.push(Shape::RateLimit { full_stroke_s: tau_s });
+        for &jets in Jets::choices(context) {
+            for tau_s in log_grid(low, LAG_RANGE_S.1, Self::VALVE_COARSE) {
+                shapes.extend(VALVE_ZETA_COARSE.map(|zeta| Shape::SecondOrderLag { tau_s, zeta, jets }));
+                // A full stroke as fast as the time constants span.
+                shapes.push(Shape::RateLimit { full_stroke_s: tau_s, jets });
+            }
         }
         shapes
     }
@@ -175,16 +177,16 @@ impl BalanceCandidate for ActuatorLag {
                 .into_iter()
                 .map(|tau_s| Shape::Lag { tau_s, jets })
                 .collect(),
-            Shape::SecondOrderLag { tau_s, .. } => {
+            Shape::SecondOrderLag { tau_s, jets, .. } => {
                 around(tau_s, grid_ratio(low, high, Self::VALVE_COARSE), 7, low, high)
                     .into_iter()
-                    .flat_map(|tau_s| VALVE_ZETA_FINE.map(|zeta| Shape::SecondOrderLag { tau_s, zeta }))
+                    .flat_map(|tau_s| VALVE_ZETA_FINE.map(|zeta| Shape::SecondOrderLag { tau_s, zeta, jets }))
                     .collect()
             }
-            Shape::RateLimit { full_stroke_s } => {
+            Shape::RateLimit { full_stroke_s, jets } => {
                 around(full_stroke_s, grid_ratio(low, high, Self::VALVE_COARSE), 7, low, high)
                     .into_iter()
-                    .map(|full_stroke_s| Shape::RateLimit { full_stroke_s })
+                    .map(|full_stroke_s| Shape::RateLimit { full_stroke_s, jets })
                     .collect()
             }
             _ => Vec::new(),
@@ -198,12 +200,12 @@ impl BalanceCandidate for ActuatorLag {
         let dt_s = 1.0 / run.sample_hz;
         let effective = match *shape {
             Shape::Lag { tau_s, jets } => jets.apply(&run.cmu, |cmu| first_order_lag(cmu, tau_s, dt_s)),
-            Shape::SecondOrderLag { tau_s, zeta } => {
-                Jets::Both.apply(&run.cmu, |cmu| resonator(cmu, 1.0 / (std::f64::consts::TAU * tau_s), zeta, dt_s))
+            Shape::SecondOrderLag { tau_s, zeta, jets } => {
+                jets.apply(&run.cmu, |cmu| resonator(cmu, 1.0 / (std::f64::consts::TAU * tau_s), zeta, dt_s))
             }
-            Shape::RateLimit { full_stroke_s } => {
+            Shape::RateLimit { full_stroke_s, jets } => {
                 let step = context.cmu_ref * dt_s / full_stroke_s;
-                Jets::Both.apply(&run.cmu, |cmu| rate_limited(cmu, step))
+                jets.apply(&run.cmu, |cmu| rate_limited(cmu, step))
             }
             _ => return Vec::new(),
         };

@@ -168,12 +168,16 @@ pub enum Shape {
         tau_s: f64,
         /// Damping ratio.
         zeta: f64,
+        /// The jets it acts on.
+        jets: Jets,
     },
     /// A valve whose opening is rate limited: the effective Cmu follows the recorded one at
     /// most as fast as a full stroke in `full_stroke_s`.
     RateLimit {
         /// Time of a stroke from zero to the largest recorded Cmu, s.
         full_stroke_s: f64,
+        /// The jets it acts on.
+        jets: Jets,
     },
     /// A slower flow state with its drive.
     SlowState {
@@ -217,6 +221,12 @@ pub enum Shape {
         /// Corner of the balance's second-order Butterworth low-pass, Hz (`None`: seen
         /// directly).
         corner_hz: Option<f64>,
+    },
+    /// A weight moment about the roll axis, read by a balance zeroed at `phi = 0` (tared: the
+    /// moment less its value there) or zeroed without the weight (the whole moment).
+    Weight {
+        /// Zeroed at `phi = 0` with the weight on.
+        tared: bool,
     },
     /// A disturbance-blowing interaction: its law in Cmu and its lag.
     Interaction {
@@ -433,7 +443,11 @@ impl Form {
     #[must_use]
     pub const fn n_profiled(&self) -> usize {
         match self.shape {
-            Shape::Fixed | Shape::Damping { .. } | Shape::Trend { .. } | Shape::Wander { .. } => 0,
+            Shape::Fixed
+            | Shape::Damping { .. }
+            | Shape::Trend { .. }
+            | Shape::Wander { .. }
+            | Shape::Weight { .. } => 0,
             Shape::Lag { .. } | Shape::RateLimit { .. } | Shape::Settle { .. } => 1,
             Shape::Delay { smoothing_s, .. } => 1 + (smoothing_s > 0.0) as usize,
             Shape::SecondOrderLag { .. } => 2,
@@ -451,13 +465,13 @@ impl Form {
     #[must_use]
     pub const fn coordinate(&self) -> Option<(&'static str, f64)> {
         match self.shape {
-            Shape::Fixed | Shape::Damping { .. } | Shape::Steps { .. } => None,
+            Shape::Fixed | Shape::Damping { .. } | Shape::Steps { .. } | Shape::Weight { .. } => None,
             Shape::Delay { delay_s, .. } => Some(("delay_s", delay_s)),
             Shape::Lag { tau_s, .. }
             | Shape::SecondOrderLag { tau_s, .. }
             | Shape::SlowState { tau_s, .. }
             | Shape::Settle { tau_s } => Some(("tau_s", tau_s)),
-            Shape::RateLimit { full_stroke_s } => Some(("full_stroke_s", full_stroke_s)),
+            Shape::RateLimit { full_stroke_s, .. } => Some(("full_stroke_s", full_stroke_s)),
             Shape::Mode { freq_hz, .. } | Shape::Ringing { freq_hz, .. } => Some(("freq_hz", freq_hz)),
             Shape::Tare { corner_hz, .. } => match corner_hz {
                 Some(corner_hz) => Some(("corner_hz", corner_hz)),
@@ -487,12 +501,15 @@ impl Form {
                     ("order", FormValue::Number(1.0)),
                 ]
             }
-            Shape::SecondOrderLag { tau_s, zeta } => vec![
+            Shape::SecondOrderLag { tau_s, zeta, jets } => vec![
                 ("tau_s", FormValue::Number(tau_s)),
                 ("zeta", FormValue::Number(zeta)),
+                ("jets", FormValue::Choice(jets.name())),
                 ("order", FormValue::Number(2.0)),
             ],
-            Shape::RateLimit { full_stroke_s } => vec![("full_stroke_s", FormValue::Number(full_stroke_s))],
+            Shape::RateLimit { full_stroke_s, jets } => {
+                vec![("full_stroke_s", FormValue::Number(full_stroke_s)), ("jets", FormValue::Choice(jets.name()))]
+            }
             Shape::SlowState { tau_s, drive, law, at_alpha_deg } => {
                 let mut entries = vec![
                     ("tau_s", FormValue::Number(tau_s)),
@@ -524,6 +541,7 @@ impl Form {
             Shape::Interaction { law, lag_s } => {
                 vec![("cmu_law", FormValue::Choice(law.name())), ("lag_s", FormValue::Number(lag_s))]
             }
+            Shape::Weight { tared } => vec![("tared", FormValue::Flag(tared))],
             Shape::Trend { degree } => vec![("degree", FormValue::Number(f64::from(degree)))],
             Shape::Wander { knot_spacing_s } => vec![("knot_spacing_s", FormValue::Number(knot_spacing_s))],
             Shape::Settle { tau_s } => vec![("settle_tau_s", FormValue::Number(tau_s))],
