@@ -120,6 +120,22 @@ impl Profiled {
 /// a coarse grid (two modes, a delay and its alias) can swap order on the fine one.
 const REFINED_LEADERS: usize = 3;
 
+/// Which of a family's coarse forms, ranked best first by their shapes, are refined: the
+/// [`REFINED_LEADERS`] leading ones and the best of every other kind of shape. The leaders of
+/// one kind (neighbouring first-order lags) can fill the places, and a second-order valve whose
+/// coarse grid falls between its optimum's neighbours would never be looked at near its optimum.
+#[must_use]
+pub fn refined_leaders(ranked: &[candidates::Shape]) -> Vec<usize> {
+    let mut leaders: Vec<usize> = (0..ranked.len().min(REFINED_LEADERS)).collect();
+    for (idx, shape) in ranked.iter().enumerate() {
+        let kind = std::mem::discriminant(shape);
+        if !leaders.iter().any(|&leader| std::mem::discriminant(&ranked[leader]) == kind) {
+            leaders.push(idx);
+        }
+    }
+    leaders
+}
+
 /// Standard errors above zero the selection part's calibration slope must stand for the fitted
 /// effect to count as confirmed there (one-sided, about 2 % by chance).
 pub const CONFIRM_Z: f64 = 2.0;
@@ -309,16 +325,8 @@ pub fn profile(
     // without profiling the fine grid everywhere.
     let mut ranked: Vec<&(Form, Fit, f64)> = fits.iter().collect();
     ranked.sort_by(|a, b| b.2.total_cmp(&a.2));
-    let mut leaders: Vec<&(Form, Fit, f64)> = ranked.iter().take(REFINED_LEADERS).copied().collect();
-    // The best of every kind of form is refined too: the leaders of one kind (neighbouring
-    // first-order lags) can fill the places, and a second-order valve whose coarse grid falls
-    // between its optimum's neighbours would never be looked at near its optimum.
-    for fit in &ranked {
-        if !leaders.iter().any(|leader| std::mem::discriminant(&leader.0.shape) == std::mem::discriminant(&fit.0.shape))
-        {
-            leaders.push(fit);
-        }
-    }
+    let shapes: Vec<candidates::Shape> = ranked.iter().map(|(form, _, _)| form.shape).collect();
+    let leaders: Vec<&(Form, Fit, f64)> = refined_leaders(&shapes).into_iter().map(|idx| ranked[idx]).collect();
     let finer: Vec<Form> = leaders
         .iter()
         .flat_map(|(form, _, _)| {

@@ -725,3 +725,16 @@ fn a_steady_tone_is_predicted_by_the_line_probe_and_noise_is_not() {
     let share = removed_share(quiet, 1.0);
     assert!(share < 0.01, "the line probe took {share} of white noise");
 }
+
+/// Three first-order lags lead the coarse grid; the best second-order valve and the best rate
+/// limit are refined too, and no second one of their kinds.
+#[test]
+fn the_best_form_of_every_kind_is_refined_beside_the_leaders() {
+    use crate::diagnose::candidates::{Jets, Shape};
+    let lag = |tau_s| Shape::Lag { tau_s, jets: Jets::Both };
+    let valve = |tau_s| Shape::SecondOrderLag { tau_s, zeta: 1.0, jets: Jets::Port };
+    let limit = Shape::RateLimit { full_stroke_s: 0.1, jets: Jets::Both };
+    let ranked = [lag(0.02), lag(0.03), lag(0.01), lag(0.04), valve(0.012), valve(0.024), limit];
+    assert_eq!(refined_leaders(&ranked), vec![0, 1, 2, 4, 6]);
+    assert_eq!(refined_leaders(&ranked[..2]), vec![0, 1]);
+}
