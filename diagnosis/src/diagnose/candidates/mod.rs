@@ -222,12 +222,6 @@ pub enum Shape {
         /// directly).
         corner_hz: Option<f64>,
     },
-    /// A weight moment about the roll axis, read by a balance zeroed at `phi = 0` (tared: the
-    /// moment less its value there) or zeroed without the weight (the whole moment).
-    Weight {
-        /// Zeroed at `phi = 0` with the weight on.
-        tared: bool,
-    },
     /// A disturbance-blowing interaction: its law in Cmu and its lag.
     Interaction {
         /// How the interaction grows with the blowing.
@@ -443,11 +437,7 @@ impl Form {
     #[must_use]
     pub const fn n_profiled(&self) -> usize {
         match self.shape {
-            Shape::Fixed
-            | Shape::Damping { .. }
-            | Shape::Trend { .. }
-            | Shape::Wander { .. }
-            | Shape::Weight { .. } => 0,
+            Shape::Fixed | Shape::Damping { .. } | Shape::Trend { .. } | Shape::Wander { .. } => 0,
             Shape::Lag { .. } | Shape::RateLimit { .. } | Shape::Settle { .. } => 1,
             Shape::Delay { smoothing_s, .. } => 1 + (smoothing_s > 0.0) as usize,
             Shape::SecondOrderLag { .. } => 2,
@@ -465,7 +455,7 @@ impl Form {
     #[must_use]
     pub const fn coordinate(&self) -> Option<(&'static str, f64)> {
         match self.shape {
-            Shape::Fixed | Shape::Damping { .. } | Shape::Steps { .. } | Shape::Weight { .. } => None,
+            Shape::Fixed | Shape::Damping { .. } | Shape::Steps { .. } => None,
             Shape::Delay { delay_s, .. } => Some(("delay_s", delay_s)),
             Shape::Lag { tau_s, .. }
             | Shape::SecondOrderLag { tau_s, .. }
@@ -541,7 +531,6 @@ impl Form {
             Shape::Interaction { law, lag_s } => {
                 vec![("cmu_law", FormValue::Choice(law.name())), ("lag_s", FormValue::Number(lag_s))]
             }
-            Shape::Weight { tared } => vec![("tared", FormValue::Flag(tared))],
             Shape::Trend { degree } => vec![("degree", FormValue::Number(f64::from(degree)))],
             Shape::Wander { knot_spacing_s } => vec![("knot_spacing_s", FormValue::Number(knot_spacing_s))],
             Shape::Settle { tau_s } => vec![("settle_tau_s", FormValue::Number(tau_s))],

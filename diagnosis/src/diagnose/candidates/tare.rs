@@ -16,13 +16,9 @@ const G_MPS2: f64 = 9.806_65;
 #[derive(Debug, Clone, Copy)]
 pub struct InertialTare;
 
-/// `gravity_tare`: `m g d sin(phi + phase) / (q S b)` (the weight moment about the roll axis),
-/// one size or one per angle of attack (a centre of gravity whose arm about the roll axis turns
-/// with the pitch, e.g. with cos alpha). A balance zeroed wind-off at `phi = 0` with the model
-/// on reads the moment less its value there, `m g d (sin(phi + phase) - sin(phase))`; one zeroed
-/// without the model reads all of it, its offset at `phi = 0` included. Both are searched: the
-/// columns are fitted through the origin (the offset is part of the gap), and the tared form's
-/// `cos(phi) - 1` is not the other's `cos(phi)` plus a constant the fit could add.
+/// `gravity_tare`: `m g d sin(phi + phase) / (q S b)` (the weight moment about the roll axis,
+/// with the offset it leaves at `phi = 0`), one size or one per angle of attack (a centre of
+/// gravity whose arm about the roll axis turns with the pitch, e.g. with cos alpha).
 #[derive(Debug, Clone, Copy)]
 pub struct GravityTare;
 
@@ -99,7 +95,7 @@ const TARE_CORNERS: usize = 10;
 
 impl BalanceCandidate for GravityTare {
     fn regressors(&self) -> &'static str {
-        "sin(phi) and cos(phi), or cos(phi) - 1 on a balance zeroed at phi = 0, over q S b (a centre of gravity off the axis both ways)"
+        "sin(phi) and cos(phi) - 1 over q S b (a centre of gravity off the axis both ways)"
     }
 
     fn effect(&self) -> Option<Effect> {
@@ -115,20 +111,15 @@ impl BalanceCandidate for GravityTare {
     }
 
     fn shapes(&self, _sample_hz: f64, _context: &Context<'_>) -> Vec<Shape> {
-        vec![Shape::Weight { tared: true }, Shape::Weight { tared: false }]
+        vec![Shape::Fixed]
     }
 
-    fn columns(&self, shape: &Shape, run: &RunStreams, _run_idx: usize, _context: &Context<'_>) -> Vec<Vec<f64>> {
-        let zero = if matches!(shape, Shape::Weight { tared: true }) { 1.0 } else { 0.0 };
-        vec![
-            run.phi_rad.iter().map(|phi| phi.sin()).collect(),
-            run.phi_rad.iter().map(|phi| phi.cos() - zero).collect(),
-        ]
+    fn columns(&self, _shape: &Shape, run: &RunStreams, _run_idx: usize, _context: &Context<'_>) -> Vec<Vec<f64>> {
+        vec![run.phi_rad.iter().map(|phi| phi.sin()).collect(), run.phi_rad.iter().map(|phi| phi.cos()).collect()]
     }
 
     fn params(&self, _shape: &Shape, beta: &[f64], context: &Context<'_>, _columns: &[Vec<Vec<f64>>]) -> Params {
-        // m g d sin(phi + p) = m g d cos p sin(phi) + m g d sin p cos(phi); tared, the same less
-        // m g d sin p, so the cosine's gain is m g d sin p in both forms.
+        // m g d sin(phi + p) = m g d cos p sin(phi) + m g d sin p cos(phi).
         let (b0, b1) = (beta.first().copied().unwrap_or(0.0), beta.get(1).copied().unwrap_or(0.0));
         let moment_nm = context.moment_scale_nm * b0.hypot(b1);
         vec![
@@ -168,52 +159,17 @@ mod tests {
     fn gravity_tare_recovers_moment_offset_and_phase() {
         let context = test_context();
         let (moment_nm, phase) = (0.12, 30f64.to_radians());
-        let run = rolling_run();
+        let mut run = synthetic_run(1000.0, vec![vec![0.0; 3000]], vec![vec![0.0; 3000]]);
+        run.phi_rad = (0..3000).map(|i| 0.6 * (i as f64 * 0.004).sin()).collect();
         let residual: Vec<f64> =
             run.phi_rad.iter().map(|phi| moment_nm * (phi + phase).sin() / context.moment_scale_nm).collect();
-        let shape = Shape::Weight { tared: false };
-        let columns = GravityTare.columns(&shape, &run, 0, &context);
+        let columns = GravityTare.columns(&Shape::Fixed, &run, 0, &context);
         let beta = test_fit(&columns, &residual);
-        let params = GravityTare.params(&shape, &beta, &context, &[columns]);
+        let params = GravityTare.params(&Shape::Fixed, &beta, &context, &[columns]);
         let get = |name: &str| params.iter().find(|(n, _)| n == name).map(|(_, v)| *v).unwrap();
         assert!((get("weight_moment_nm") - moment_nm).abs() < 1e-9);
         assert!((get("mass_offset_kgm") - moment_nm / 9.806_65).abs() < 1e-9);
         assert!((get("phase_deg") - 30.0).abs() < 1e-6);
-    }
-
-    /// A balance zeroed at `phi = 0` with a centre of gravity above the axis reads
-    /// `m g d (cos(phi) - 1)`, even in the roll angle. The tared form gives back its size and
-    /// phase; the whole moment's `cos(phi)`, fitted through the origin, misses a third of it.
-    #[test]
-    fn a_weight_moment_zeroed_at_level_is_the_tared_form() {
-        let context = test_context();
-        let (moment_nm, phase) = (0.05, 87f64.to_radians());
-        let run = rolling_run();
-        let residual: Vec<f64> = run
-            .phi_rad
-            .iter()
-            .map(|phi| moment_nm * ((phi + phase).sin() - phase.sin()) / context.moment_scale_nm)
-            .collect();
-        let left_over = |shape: Shape| {
-            let columns = GravityTare.columns(&shape, &run, 0, &context);
-            let beta = test_fit(&columns, &residual);
-            let fitted = |i: usize| columns.iter().zip(&beta).map(|(col, b)| col[i] * b).sum::<f64>();
-            let ssr: f64 = residual.iter().enumerate().map(|(i, r)| (r - fitted(i)).powi(2)).sum();
-            (ssr / residual.iter().map(|r| r * r).sum::<f64>(), GravityTare.params(&shape, &beta, &context, &[]))
-        };
-        let (tared_left, params) = left_over(Shape::Weight { tared: true });
-        let (whole_left, _) = left_over(Shape::Weight { tared: false });
-        assert!(tared_left < 1e-12, "{tared_left}");
-        assert!(whole_left > 0.3, "{whole_left}");
-        assert!((params[0].1 - moment_nm).abs() < 1e-9, "{params:?}");
-        assert!((params[2].1 - 87.0).abs() < 1e-6, "{params:?}");
-    }
-
-    /// A roll sweep of 0.6 rad amplitude from level, 3 s at 1 kHz.
-    fn rolling_run() -> RunStreams {
-        let mut run = synthetic_run(1000.0, vec![vec![0.0; 3000]], vec![vec![0.0; 3000]]);
-        run.phi_rad = (0..3000).map(|i| 0.6 * (i as f64 * 0.004).sin()).collect();
-        run
     }
 
     /// A tare seen through the balance's 20 Hz low-pass with a different inertia per run is
