@@ -121,7 +121,7 @@ impl Profiled {
 const REFINED_LEADERS: usize = 3;
 
 /// Which of a family's coarse forms, ranked best first by their shapes, are refined: the
-/// [`REFINED_LEADERS`] leading ones and the best of every other kind of shape. The leaders of
+/// `REFINED_LEADERS` leading ones and the best of every other kind of shape. The leaders of
 /// one kind (neighbouring first-order lags) can fill the places, and a second-order valve whose
 /// coarse grid falls between its optimum's neighbours would never be looked at near its optimum.
 #[must_use]
