@@ -43,6 +43,10 @@ pub struct Profiled {
     /// The best form lies at an end of what the family profiles beyond the effect's range
     /// ([`super::candidates::BalanceCandidate::beyond_its_range`]): the fit is another effect's.
     pub beyond_its_range: bool,
+    /// The evidence of the best form over that of the best of the forms it tends to at the ends
+    /// of its profiled time constant ([`super::candidates::BalanceCandidate::limits`]), each
+    /// with one profiled parameter fewer; infinite for a family without limits.
+    pub limit_margin: f64,
 }
 
 impl Profiled {
@@ -51,6 +55,11 @@ impl Profiled {
     /// - Its best form lies inside what the family profiles ([`Self::beyond_its_range`]): a slow
     ///   state at the longest time constant searched is the static term of its drive (of the
     ///   roll rate, a linear roll damping).
+    /// - It beats the forms it tends to at the ends of its time constant by decisive evidence
+    ///   ([`Self::limit_margin`], [`super::MIN_DELTA_BIC`]): a slow state the data cannot tell
+    ///   from its drive's static term or rate is not resolved as a state. A roll damping on this
+    ///   project's tunnel was named a slow state of the roll rate at 21 s, and a mount's cubic
+    ///   stiffness on the second tunnel a state of the roll angle at 13.6 s.
     /// - An effect that keeps the sim's static gain
     ///   ([`super::candidates::BalanceCandidate::unit_gain`]) fits gains within
     ///   [`super::candidates::UNIT_GAIN_RANGE`]. A "delay" of 3 ms at eleven times the plant's
@@ -63,6 +72,7 @@ impl Profiled {
     pub fn plausible(&self) -> bool {
         let (low, high) = super::candidates::UNIT_GAIN_RANGE;
         !self.beyond_its_range
+            && self.limit_margin >= super::MIN_DELTA_BIC
             && (!self.candidate.unit_gain() || self.fit.beta.iter().all(|gain| (low..=high).contains(gain)))
     }
 
@@ -363,6 +373,7 @@ pub fn profile(
             )
         })
         .flatten();
+    let limit_margin = limit_margin(candidate, &form, delta_bic, runs, &segments, context, autocorrelation_time);
     let fit_share = active_share(&segments, &columns, &fit.touched, |segment, i| !segment.select.contains(i));
     let selection_share = active_share(&segments, &columns, &fit.touched, |segment, i| segment.select.contains(i));
     Some(Profiled {
@@ -378,7 +389,35 @@ pub fn profile(
         selection_active_share: selection_share,
         cross_validation,
         beyond_its_range: candidate.beyond_its_range(&form.shape, context),
+        limit_margin,
     })
+}
+
+/// [`Profiled::limit_margin`] of `form`, whose evidence is `evidence`: each limit fitted on the
+/// same training samples, its evidence with one profiled parameter fewer (Schwarz 1978, the
+/// penalty per parameter); infinite without limits.
+fn limit_margin(
+    candidate: Candidate,
+    form: &Form,
+    evidence: f64,
+    runs: &[RunStreams],
+    segments: &[Segment<'_>],
+    context: &Context<'_>,
+    autocorrelation_time: f64,
+) -> f64 {
+    let sample_hz = runs.first().map_or(1.0, |run| run.sample_hz);
+    candidate
+        .limits(&form.shape, sample_hz)
+        .into_iter()
+        .map(|shape| {
+            let limit = Form { shape, ..*form };
+            let columns = all_columns(candidate, &limit, runs, context);
+            regression::fit_through_origin(segments, &columns).map_or(f64::INFINITY, |fit| {
+                let k = (fit.beta.len() + limit.n_profiled()).saturating_sub(1);
+                evidence - regression::delta_bic(&fit, autocorrelation_time, k)
+            })
+        })
+        .fold(f64::INFINITY, f64::min)
 }
 
 /// Share of the training part's samples that `part` keeps (finite residual, touched runs) where

@@ -551,6 +551,7 @@ mod tests {
             selection_active_share: 1.0,
             cross_validation: None,
             beyond_its_range: false,
+            limit_margin: f64::INFINITY,
         };
         let summary = CandidateSummary::from_profiled(0.01)(&profiled);
         assert_eq!(summary.name, "actuator_delay");

@@ -77,6 +77,7 @@ fn profiled(candidate: Candidate, removed: f64, delta_bic: f64) -> Profiled {
         selection_active_share: 1.0,
         cross_validation: None,
         beyond_its_range: false,
+        limit_margin: f64::INFINITY,
     }
 }
 
@@ -737,4 +738,41 @@ fn the_best_form_of_every_kind_is_refined_beside_the_leaders() {
     let ranked = [lag(0.02), lag(0.03), lag(0.01), lag(0.04), valve(0.012), valve(0.024), limit];
     assert_eq!(refined_leaders(&ranked), vec![0, 1, 2, 4, 6]);
     assert_eq!(refined_leaders(&ranked[..2]), vec![0, 1]);
+}
+
+/// A run of 20 s at 200 Hz rolling at two frequencies (0.2 and 0.65 Hz), whose eGK moment lags
+/// the roll angle by 50 ms, and whose residual is `effect` of the run plus white noise of 1e-3.
+fn two_tone_rolling(seed: u64, effect: impl Fn(&RunStreams) -> Vec<f64>) -> (RunStreams, Vec<f64>) {
+    let (sample_hz, n) = (200.0, 4000);
+    let mut run = synthetic_run(sample_hz, vec![vec![0.0; n]], vec![vec![0.0; n]]);
+    run.alpha_deg = 20.0;
+    let t_s: Vec<f64> = (0..n).map(|i| i as f64 / sample_hz).collect();
+    run.phi_rad = t_s.iter().map(|t| 0.5 * (1.3 * t).sin() + 0.2 * (4.1 * t + 1.0).sin()).collect();
+    run.phi_dot_rad_s = t_s.iter().map(|t| 0.65 * (1.3 * t).cos() + 0.82 * (4.1 * t + 1.0).cos()).collect();
+    run.cl_egk =
+        candidates::first_order_lag(&run.phi_rad, 0.05, 1.0 / sample_hz).iter().map(|phi| -0.01 * phi).collect();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let noise = Normal::new(0.0, 1e-3).expect("a valid deviation");
+    let residual = effect(&run).into_iter().map(|v| v + noise.sample(&mut rng)).collect();
+    run.residual.clone_from(&residual);
+    (run, residual)
+}
+
+/// A static term of the roll angle (a linear stiffness of the mount, outside the vocabulary)
+/// is explained with decisive evidence by a slow state at an end of its time constant, but no
+/// better than by the state's limits there, so it is not a plausible slow state; a state of the
+/// roll angle at 0.8 s, inside the range, beats both limits and is.
+#[test]
+fn a_slow_state_is_plausible_only_where_the_data_resolve_its_time_constant() {
+    use crate::diagnose::candidates::VortexLag;
+    let context = test_context();
+    let (run, residual) = two_tone_rolling(5, |run| run.phi_rad.iter().map(|phi| 0.004 * phi).collect());
+    let found = profile(&VortexLag, std::slice::from_ref(&run), &[residual], &context, 1.0).expect("a profile");
+    assert!(found.delta_bic >= MIN_DELTA_BIC, "the static term is explained: {}", found.delta_bic);
+    assert!(found.limit_margin < MIN_DELTA_BIC && !found.plausible(), "{:?}: {}", found.form, found.limit_margin);
+    let (run, residual) = two_tone_rolling(6, |run| {
+        candidates::first_order_lag(&run.phi_rad, 0.8, 1.0 / run.sample_hz).iter().map(|x| 0.01 * x).collect()
+    });
+    let found = profile(&VortexLag, std::slice::from_ref(&run), &[residual], &context, 1.0).expect("a profile");
+    assert!(found.limit_margin >= MIN_DELTA_BIC && found.plausible(), "{:?}: {}", found.form, found.limit_margin);
 }

@@ -89,6 +89,11 @@ impl BalanceCandidate for RollDamping {
 /// own lift lag can be shorter, so a state of the contract's range can have its best fit there.
 pub const SLOW_SEARCH_MARGIN: f64 = 2.0;
 
+/// The time constant of a slow state's slow limit, s: far beyond any run, so that the state
+/// holds its first value and its deficit is the drive's static term (`-u`; of the roll rate, a
+/// linear roll damping; of the eGK's moment, a change of its gain).
+const SLOW_LIMIT_S: f64 = 1e6;
+
 impl VortexLag {
     /// Points of the coarse grid of time constants: 19 over the search's factor of 50 or more,
     /// the spacing that 16 gave over the contract's factor of 25.
@@ -169,6 +174,18 @@ impl BalanceCandidate for VortexLag {
             .into_iter()
             .map(|tau_s| Shape::SlowState { tau_s, drive, law, at_alpha_deg })
             .collect()
+    }
+
+    /// The state one sample fast (it is its drive, `u`, and its deficit the drive's rate: of the
+    /// roll angle, a linear roll damping) and [`SLOW_LIMIT_S`] slow (its deficit is the drive's
+    /// static term): a slower flow state is one whose time constant the data resolve between
+    /// the two ("2 to 50 times slower than the eGK's lag", docs/spec/diagnosis.md). Where the
+    /// recording's motion is too fast or too short to resolve it, a static term or a damping
+    /// (outside the vocabulary, or another name) explains the gap as well, and naming a
+    /// "slower state" would be a guess between them.
+    fn limits(&self, shape: &Shape, sample_hz: f64) -> Vec<Shape> {
+        let Shape::SlowState { drive, law, at_alpha_deg, .. } = *shape else { return Vec::new() };
+        [1.0 / sample_hz, SLOW_LIMIT_S].map(|tau_s| Shape::SlowState { tau_s, drive, law, at_alpha_deg }).to_vec()
     }
 
     /// At the longest time constant searched (`SLOW_SEARCH_MARGIN`): a static term of the

@@ -83,6 +83,15 @@ pub trait BalanceCandidate: Sync + fmt::Debug {
         false
     }
 
+    /// The forms `shape` tends to at the ends of its profiled time constant, each of which is
+    /// another effect's: the family's best form is named only where it beats every one of them
+    /// by decisive evidence ([`crate::diagnose::attribution::Profiled::plausible`]), for
+    /// otherwise the data cannot tell the effect from its limits. Empty (the default): the
+    /// family's forms have no such limit.
+    fn limits(&self, _shape: &Shape, _sample_hz: f64) -> Vec<Shape> {
+        Vec::new()
+    }
+
     /// The regression columns of `shape` for run number `run_idx`, one gain each; every column
     /// has the run's length and is zero where the effect cannot act (e.g. no blowing).
     fn columns(&self, shape: &Shape, run: &RunStreams, run_idx: usize, context: &Context<'_>) -> Vec<Vec<f64>>;
