@@ -269,9 +269,21 @@ pub fn diagnose(
                     })
                     .unwrap_or_default();
             let gain_note = gain_note(&balance, runs, &context);
+            // A best fit the data cannot tell from its own limits is said to be one.
+            let limit_note = best
+                .filter(|p| p.limit_margin < MIN_DELTA_BIC)
+                .map(|p| {
+                    format!(
+                        "{}'s best form fits no better than the forms it tends to at the ends of its time constant (its drive, or the drive's static term; {:.1} of BIC), so the data do not resolve it; ",
+                        p.candidate.name(),
+                        p.limit_margin
+                    )
+                })
+                .unwrap_or_default();
             unexplained = Some(Unexplained {
                 description: encoder_note
                     + &gain_note
+                    + &limit_note
                     + &describe_structure(
                         runs,
                         &gaps.excess_runs,
