@@ -177,7 +177,7 @@ impl BalanceCandidate for VortexLag {
     }
 
     /// The state one sample fast (it is its drive, `u`, and its deficit the drive's rate: of the
-    /// roll angle, a linear roll damping) and [`SLOW_LIMIT_S`] slow (its deficit is the drive's
+    /// roll angle, a linear roll damping) and `SLOW_LIMIT_S` slow (its deficit is the drive's
     /// static term): a slower flow state is one whose time constant the data resolve between
     /// the two ("2 to 50 times slower than the eGK's lag", docs/spec/diagnosis.md). Where the
     /// recording's motion is too fast or too short to resolve it, a static term or a damping
