@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# A slice of a blind campaign on the second tunnel (campaign.py): one case per class, the
-# model fitted on the campaign's clean recording and every case recorded with its own seed
+# A slice of a blind campaign on the second tunnel (campaign.py): one clean case and one case
+# of each of half the other classes, drawn with the seed (so every class is flown every few
+# commits, and CI stays short), the model fitted on the campaign's clean recording and every case recorded with its own seed
 # (excitation and noise differ from the fit's), the truth sealed before the diagnosis runs.
 # `validate-diagnosis --campaign` prints the criterion table; this script fails if the command
 # fails, if a case is not scored, if a sealed truth does not match its hash, or if the clean
@@ -21,9 +22,16 @@ if [ -z "$seed" ]; then
     head="$(git -C "$root" rev-parse HEAD 2>/dev/null || true)"
     if [ -n "$head" ]; then seed=$((16#${head:0:8})); else seed=3; fi
 fi
-echo "foreign campaign slice: seed $seed (reproduce: tools/foreign-tunnel/campaign_check.sh $work $seed)"
+classes="$(python3 "$here/campaign.py" --list-forms | python3 -c '
+import random, sys
+names = [line.split(" ", 1)[0] for line in sys.stdin if line.strip()]
+others = sorted(name for name in names if name != "none")
+print(",".join(["none"] + sorted(random.Random(int(sys.argv[1])).sample(others, len(others) // 2))))
+' "$seed")"
+echo "foreign campaign slice: seed $seed, classes $classes (reproduce: tools/foreign-tunnel/campaign_check.sh $work $seed)"
 rm -rf "$work/campaign" "$work/report"
-python3 "$here/campaign.py" --out "$work/campaign" --seed "$seed" --cases-per-class 1 --duration-s 20 2>/dev/null
+python3 "$here/campaign.py" --out "$work/campaign" --seed "$seed" --cases-per-class 1 --duration-s 20 \
+    --classes "$classes" 2>/dev/null
 "$tools" validate-diagnosis --campaign "$work/campaign" --report "$work/report" 2>/dev/null
 python3 - "$work/campaign" "$work/report/validation.json" <<'PY'
 import hashlib, json, sys
