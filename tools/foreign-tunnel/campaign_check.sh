@@ -1,13 +1,14 @@
 #!/usr/bin/env bash
 # A slice of a blind campaign on the second tunnel (campaign.py): one clean case and one case
 # of each of half the other classes, drawn with the seed (so every class is flown every few
-# commits, and CI stays short), the model fitted on the campaign's clean recording and every case recorded with its own seed
-# (excitation and noise differ from the fit's), the truth sealed before the diagnosis runs.
-# `validate-diagnosis --campaign` prints the criterion table; this script fails if the command
-# fails, if a case is not scored, if a sealed truth does not match its hash, or if the clean
-# case names an effect (a wrong name where there is none). The other criteria are printed, not
-# checked: at one case per class they are a sample, and their goals are measured on the full
-# campaign (docs/results.md, "The gap diagnosis: the first campaigns").
+# commits, and CI stays short), the model fitted on the campaign's clean recording and every
+# case recorded with its own seed (excitation and noise differ from the fit's), the truth
+# sealed before the diagnosis runs. `validate-diagnosis --campaign` prints the criterion table;
+# this script fails if the command fails, if a case is not scored, if a sealed truth does not
+# match its hash, or if the clean case names an effect (a wrong name where there is none). The
+# other criteria are printed, not checked: at one case per class they are a sample, and their
+# goals are measured on the full campaign (docs/results.md, "The gap diagnosis: the first
+# campaigns").
 #
 # Without SEED, the seed is the commit under test's: the first 8 hex digits of
 # `git rev-parse HEAD` as an integer (3 outside git), so every commit draws other forms and
@@ -22,10 +23,10 @@ if [ -z "$seed" ]; then
     head="$(git -C "$root" rev-parse HEAD 2>/dev/null || true)"
     if [ -n "$head" ]; then seed=$((16#${head:0:8})); else seed=3; fi
 fi
-classes="$(python3 "$here/campaign.py" --list-forms | python3 -c '
+classes="$(cd "$here" && python3 -c '
 import random, sys
-names = [line.split(" ", 1)[0] for line in sys.stdin if line.strip()]
-others = sorted(name for name in names if name != "none")
+from campaign import CLASSES
+others = [name for name in CLASSES if name != "none"]
 print(",".join(["none"] + sorted(random.Random(int(sys.argv[1])).sample(others, len(others) // 2))))
 ' "$seed")"
 echo "foreign campaign slice: seed $seed, classes $classes (reproduce: tools/foreign-tunnel/campaign_check.sh $work $seed)"
