@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The diagnosis's acceptance campaigns, on seeds nobody chose: both seeds derive from the hash of
-# the last commit that changed the diagnosis or the second tunnel, so they are fixed only after
-# the last change to either, and no campaign that tuned them can be the one reported.
+# the last commit that changed the diagnosis, the models it fits (the fit and the core), or the
+# second tunnel, so they are fixed only after the last change to any of them, and no campaign
+# that tuned them can be the one reported.
 #
 #   tools/diagnosis-campaigns.sh [OUT_DIR] [CASES_PER_CLASS]   (a release build of host-tools;
 #                                                              python3 with numpy and scipy)
@@ -16,11 +17,12 @@ root="$(cd "$(dirname "$0")/.." && pwd)"
 out="${1:-$root/out/diagnosis-campaigns}"
 per_class="${2:-10}"
 tools="${CARGO_TARGET_DIR:-$root/target}/release/host-tools"
-last=$(git -C "$root" log -1 --format=%H -- diagnosis/src/diagnose host-tools/src/diagnose tools/foreign-tunnel)
+last=$(git -C "$root" log -1 --format=%H -- diagnosis/src/diagnose host-tools/src/diagnose tools/foreign-tunnel \
+    model-fit/src/fit estimator-core/src)
 seed=$(( 0x${last:0:8} % 1000000 ))
 own_seed=$(( seed + 1 ))
 cases=$(( per_class * 14 ))
-echo "last change to the diagnosis or the second tunnel: $last"
+echo "last change to the diagnosis, its models or the second tunnel: $last"
 echo "second tunnel: python3 tools/foreign-tunnel/campaign.py --out $out/foreign --seed $seed --cases-per-class $per_class --duration-s 20"
 echo "               $tools validate-diagnosis --campaign $out/foreign --report $out/foreign-report"
 echo "own tunnel:    $tools validate-diagnosis --cases $cases --seed $own_seed --report $out/own-report"

@@ -81,7 +81,7 @@ fn stages(c: &mut Criterion) {
             ))
         });
     });
-    let vars = [0.01, 0.005, 0.001, 0.3, 0.002, 0.2];
+    let vars = [0.01, 0.005, 0.001, 0.3, 0.002, 0.2, 0.5];
     group.bench_function("sparse_16_terms", |b| b.iter(|| black_box(set.coupling.eval(black_box(&vars)))));
     group.finish();
 }

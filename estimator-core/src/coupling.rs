@@ -23,6 +23,8 @@ pub struct CouplingInput<R = f32> {
     pub dcmu: R,
     /// Roll angle, rad.
     pub phi_rad: R,
+    /// Roll rate, rad/s.
+    pub phi_dot_rad_s: R,
 }
 
 impl<R: Real> CouplingInput<R> {
@@ -36,6 +38,7 @@ impl<R: Real> CouplingInput<R> {
         vars[coupling_var::CMU] = self.cmu;
         vars[coupling_var::DCMU] = self.dcmu;
         vars[coupling_var::PHI] = self.phi_rad;
+        vars[coupling_var::PHI_DOT] = self.phi_dot_rad_s;
         vars
     }
 }

@@ -270,6 +270,7 @@ impl<'a, E: SparseEval> Estimator<'a, E> {
             cmu: cmu_total,
             dcmu: cmu_total - self.last_cmu_total,
             phi_rad,
+            phi_dot_rad_s: rates.phi_dot_rad_s,
         };
         self.last_cmu_total = cmu_total;
         let coupling = match correction_with(self.eval, &set.coupling, &coupling_input) {

@@ -33,6 +33,8 @@ pub enum Factor {
     Var4,
     /// Variable 5.
     Var5,
+    /// Variable 6.
+    Var6,
     /// The constant `1`.
     One,
 }
@@ -44,7 +46,7 @@ impl Factor {
     #[must_use]
     pub const fn var(var_idx: usize) -> Option<Self> {
         const VARS: [Factor; MAX_VARS] =
-            [Factor::Var0, Factor::Var1, Factor::Var2, Factor::Var3, Factor::Var4, Factor::Var5];
+            [Factor::Var0, Factor::Var1, Factor::Var2, Factor::Var3, Factor::Var4, Factor::Var5, Factor::Var6];
         if var_idx < MAX_VARS { Some(VARS[var_idx]) } else { None }
     }
 
@@ -169,9 +171,9 @@ pub struct SparseModel {
 }
 
 /// Entries of the evaluation table: the variables, then the constant 1 for [`ONE_FACTOR`]
-/// and one more 1 that makes the length a power of two.
+/// (and, while the variables are fewer, more 1s that keep the length a power of two).
 const FACTOR_TABLE_LEN: usize = 8;
-const _: () = assert!(MAX_VARS + 2 == FACTOR_TABLE_LEN);
+const _: () = assert!(MAX_VARS < FACTOR_TABLE_LEN && FACTOR_TABLE_LEN.is_power_of_two());
 
 impl SparseModel {
     /// The model that is zero everywhere.
@@ -365,8 +367,8 @@ mod tests {
         #[test]
         fn lazy_indicators_sum_bit_for_bit_like_eager_ones(
             terms in proptest::collection::vec(term_strategy(), 0..=MAX_TERMS),
-            vars in proptest::array::uniform6(prop_oneof![Just(0.0f32), -2.0f32..2.0]),
-            threshold in proptest::array::uniform6(0.0f32..0.5),
+            vars in proptest::array::uniform7(prop_oneof![Just(0.0f32), -2.0f32..2.0]),
+            threshold in proptest::array::uniform7(0.0f32..0.5),
         ) {
             let mut model = SparseModel { gate_threshold: threshold, ..SparseModel::ZERO };
             for (slot, &(coeff, powers, gate_mask)) in model.terms.iter_mut().zip(&terms) {
@@ -385,8 +387,8 @@ mod tests {
         #[test]
         fn f32_and_f64_evaluations_match_the_direct_formula(
             terms in proptest::collection::vec(term_strategy(), 0..=MAX_TERMS),
-            vars in proptest::array::uniform6(-2.0f32..2.0),
-            threshold in proptest::array::uniform6(0.0f32..0.5),
+            vars in proptest::array::uniform7(-2.0f32..2.0),
+            threshold in proptest::array::uniform7(0.0f32..0.5),
         ) {
             let mut model = SparseModel { gate_threshold: threshold, ..SparseModel::ZERO };
             for (slot, &(coeff, powers, gate_mask)) in terms.iter().enumerate() {
@@ -427,12 +429,12 @@ mod tests {
     #[test]
     fn degree_above_the_limit_has_no_monomial() {
         assert_eq!(
-            Monomial::from_powers(&[2, 0, 1, 0, 0, 0], 0).map(|m| m.factors),
+            Monomial::from_powers(&[2, 0, 1, 0, 0, 0, 0], 0).map(|m| m.factors),
             Some([Factor::Var0, Factor::Var0, Factor::Var2])
         );
-        assert_eq!(Monomial::from_powers(&[2, 0, 2, 0, 0, 0], 0), None);
+        assert_eq!(Monomial::from_powers(&[2, 0, 2, 0, 0, 0, 0], 0), None);
         assert_eq!(Monomial::from_powers(&[0; MAX_VARS], 0), Some(Monomial::ONE));
-        let x0 = Monomial::from_powers(&[1, 0, 0, 0, 0, 0], 0).unwrap();
+        let x0 = Monomial::from_powers(&[1, 0, 0, 0, 0, 0, 0], 0).unwrap();
         assert_eq!(x0.times(5, 2).map(|m| m.factors), Some([Factor::Var0, Factor::Var5, Factor::Var5]));
         assert_eq!(x0.times(5, 3), None);
         assert!(!Monomial { factors: [Factor::Var3, Factor::Var1, ONE_FACTOR], gate_mask: 0 }.is_canonical(MAX_VARS));

@@ -349,7 +349,7 @@ mod tests {
         assert!(matches!(Library::polynomial(&["a", "b"], 4, true), Err(SindyError::DegreeTooHigh { found: 4 })));
         let mut other = Library::new(&["a"]).unwrap();
         assert!(matches!(other.monomial(&[("a", 2), ("a", 2)], &[]), Err(SindyError::InvalidTerm { .. })));
-        let foreign = Monomial::from_powers(&[0, 1, 0, 0, 0, 0], 0).unwrap();
+        let foreign = Monomial::from_powers(&[0, 1, 0, 0, 0, 0, 0], 0).unwrap();
         assert!(matches!(other.push(foreign), Err(SindyError::InvalidTerm { .. })));
         let unordered = Monomial { factors: [Factor::Var0, Factor::Var0, Factor::One], gate_mask: 0 };
         assert!(other.push(unordered).is_ok());
@@ -378,8 +378,10 @@ mod tests {
 
     #[test]
     fn variable_limits() {
-        let seven = ["a", "b", "c", "d", "e", "f", "g"];
-        assert_eq!(Library::new(&seven), Err(SindyError::TooManyVariables { found: 7 }));
+        let names = ["a", "b", "c", "d", "e", "f", "g", "h"];
+        assert!(Library::new(&names[..MAX_VARS]).is_ok());
+        let too_many = &names[..=MAX_VARS];
+        assert_eq!(Library::new(too_many), Err(SindyError::TooManyVariables { found: MAX_VARS + 1 }));
         assert!(matches!(Library::new(&["a", "a"]), Err(SindyError::InvalidVariableName(_))));
         assert!(matches!(Library::new(&[]), Err(SindyError::EmptyData { .. })));
     }
@@ -392,7 +394,15 @@ mod tests {
         let samples: Vec<[f64; MAX_VARS]> = (0..50)
             .map(|k| {
                 let t = f64::from(k);
-                [0.1 * (0.3 * t).sin(), if k % 3 == 0 { 0.0 } else { 0.01 * (0.7 * t).cos() }, 0.002, 0.17, 0.0, 0.0]
+                [
+                    0.1 * (0.3 * t).sin(),
+                    if k % 3 == 0 { 0.0 } else { 0.01 * (0.7 * t).cos() },
+                    0.002,
+                    0.17,
+                    0.0,
+                    0.0,
+                    0.0,
+                ]
             })
             .collect();
         let theta = library.theta(&samples).unwrap();
@@ -419,9 +429,9 @@ mod tests {
         let mut huge = vec![0.0; 15];
         huge[3] = 1e300;
         assert!(matches!(library.to_sparse_model(&huge), Err(SindyError::CoefficientOutOfRange { .. })));
-        let bad = [[0.0, f64::NAN, 0.0, 0.0, 0.0, 0.0]];
+        let bad = [[0.0, f64::NAN, 0.0, 0.0, 0.0, 0.0, 0.0]];
         assert_eq!(library.theta(&bad), Err(SindyError::NonFinite { name: "b".to_owned(), row: 0 }));
-        let overflow = [[1e200, 0.0, 0.0, 0.0, 0.0, 0.0]];
+        let overflow = [[1e200, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]];
         assert_eq!(library.theta(&overflow), Err(SindyError::NonFinite { name: "a^2".to_owned(), row: 0 }));
         assert!(matches!(library.theta(&[]), Err(SindyError::EmptyData { .. })));
     }

@@ -34,7 +34,7 @@ pub(crate) fn static_regression(n: usize, noise: f64, seed: u64) -> (Vec<[f64; M
     let mut y = Vec::with_capacity(n);
     for _ in 0..n {
         let (x0, x1) = (rng.symmetric(), rng.symmetric());
-        samples.push([x0, x1, 0.0, 0.0, 0.0, 0.0]);
+        samples.push([x0, x1, 0.0, 0.0, 0.0, 0.0, 0.0]);
         y.push(1.0 + 2.0 * x0 - 0.05 * x1 * x1 + noise * rng.symmetric());
     }
     (samples, y)

@@ -169,7 +169,7 @@ fn simulate_plant(n: usize, seed: u64) -> (Vec<[f64; MAX_VARS]>, Vec<f64>) {
             alpha_hold = 100 + (rng.uniform() * 101.0) as usize;
         }
         (cmu_hold, alpha_hold) = (cmu_hold - 1, alpha_hold - 1);
-        samples.push([cl, cmu, cmu - previous_cmu, alpha, 0.0, 0.0]);
+        samples.push([cl, cmu, cmu - previous_cmu, alpha, 0.0, 0.0, 0.0]);
         cl = 0.92 * cl + 0.6 * cmu + 8.0 * cmu * cmu + 0.5 * alpha * cmu;
         next.push(cl);
         previous_cmu = cmu;
@@ -196,7 +196,7 @@ fn heldout_scorer<'a>(
         let mut cl = samples[0][0];
         let mut free_squared = 0.0;
         for (sample, y) in samples.iter().zip(y) {
-            cl = library.predict(coeffs, &[cl, sample[1], sample[2], sample[3], 0.0, 0.0]).unwrap();
+            cl = library.predict(coeffs, &[cl, sample[1], sample[2], sample[3], 0.0, 0.0, 0.0]).unwrap();
             free_squared += (cl - y).powi(2);
         }
         let n = y.len() as f64;

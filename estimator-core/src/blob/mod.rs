@@ -49,9 +49,9 @@ pub const HEADER_LEN: usize = 20;
 /// Written by hand (const string formatting does not exist); a unit test checks that the
 /// numbers in it are the current values of the constants. Update it with any change of a field
 /// or size: its hash, [`SCHEMA_HASH`], is what makes an old blob fail to load.
-pub const SCHEMA: &str = "rlcs coefficient set; schema_version=7; \
-    N_TAPS=12; PRESSURE_RANK=10; N_PRESSURE_INPUTS=5; N_ALPHA=8; MAX_TERMS=16; MAX_VARS=6; MAX_DEGREE=3; \
-    N_PLANT_VARS=5; N_COUPLING_VARS=6; DEMAND_SLOTS=64; \
+pub const SCHEMA: &str = "rlcs coefficient set; schema_version=8; \
+    N_TAPS=12; PRESSURE_RANK=10; N_PRESSURE_INPUTS=5; N_ALPHA=8; MAX_TERMS=16; MAX_VARS=7; MAX_DEGREE=3; \
+    N_PLANT_VARS=5; N_COUPLING_VARS=7; DEMAND_SLOTS=64; \
     CoefficientSet{schema_version:u16,dt_s:f32,rate_filter:RateFilter,alpha_schedule_deg:[f32;N_ALPHA],\
     n_alpha:u8,egk:[EgkParams;N_ALPHA],pressure:PressureModel,fusion:FusionParams,plant:[PlantParams;2],\
     coupling:SparseModel,controller:ControllerParams,actuator:[ActuatorResponse;2],envelope:Envelope}; \

@@ -80,7 +80,7 @@ mod tests {
     fn another_sets_model_is_interpreted() {
         let mut other = DEFAULT.plant[0].model;
         other.terms[0].coeff *= 2.0;
-        let vars = [0.01, 0.005, 0.001, 0.2, 0.003, 0.0];
+        let vars = [0.01, 0.005, 0.001, 0.2, 0.003, 0.0, 0.0];
         let value = CompiledDefault::NEW.eval(ModelId::PlantPort, &other, &vars);
         assert_eq!(value.to_bits(), other.eval(&vars).to_bits());
         assert_ne!(value, BUILT_IN.plant[0].model.eval(&vars));

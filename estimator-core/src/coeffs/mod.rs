@@ -21,7 +21,7 @@ pub use compiled::{BUILT_IN, CompiledDefault};
 pub use generated::DEFAULT;
 
 /// Version of the coefficient-set layout. Bump it whenever a field or a size changes.
-pub const SCHEMA_VERSION: u16 = 7;
+pub const SCHEMA_VERSION: u16 = 8;
 
 /// Number of upper-surface pressure taps.
 pub const N_TAPS: usize = 12;
@@ -43,15 +43,15 @@ pub const MAX_TERMS: usize = 16;
 pub const MAX_DEGREE: usize = 3;
 
 /// Largest number of variables of a sparse model.
-pub const MAX_VARS: usize = 6;
+pub const MAX_VARS: usize = 7;
 
 /// Variables of the plant model (paper eq. 5, plus a slow state): `[C_l,AFC, Cmu, dCmu,
 /// alpha_rad, C_l,slow]`.
 pub const N_PLANT_VARS: usize = 5;
 
-/// Variables of the coupling operator (paper eqs. 9-11):
-/// `[C_l,roll, C_l,AFC, alpha_rad, Cmu, dCmu, phi_rad]`.
-pub const N_COUPLING_VARS: usize = 6;
+/// Variables of the coupling operator (paper eqs. 9-11, plus the roll rate):
+/// `[C_l,roll, C_l,AFC, alpha_rad, Cmu, dCmu, phi_rad, phi_dot_rad_s]`.
+pub const N_COUPLING_VARS: usize = 7;
 
 /// Slots of the demand history the actuator response reads ([`ActuatorResponse`]): the longest
 /// dead time is `DEMAND_SLOTS - 1` steps (63 ms at 1 kHz). A valve and plenum of a
@@ -103,6 +103,10 @@ pub mod coupling_var {
     pub const DCMU: usize = 4;
     /// Roll angle, rad (its indicator gates terms on roll motion).
     pub const PHI: usize = 5;
+    /// Roll rate, rad/s (the rate filter's, as the eGK reads it): blowing on a rolling wing
+    /// changes the jet's moment with the blown half-wing's incidence, which the roll rate
+    /// moves (`p b / 2U` of it), and the disturbance model's moment alone does not carry it.
+    pub const PHI_DOT: usize = 6;
 }
 
 /// The whole coefficient set.

@@ -12,6 +12,7 @@ pub mod literal;
 use std::path::{Path, PathBuf};
 
 use estimator_core::CoefficientSet;
+use estimator_core::coeffs::MAX_VARS;
 
 use literal::{LiteralError, f32_literal};
 
@@ -233,8 +234,12 @@ pub fn render(set: &CoefficientSet, provenance: &str) -> Result<Generated, Codeg
 /// [`f32_literal`]) and the factors as fixed indices. The padding factor multiplies by 1, which is exact,
 /// so it is left out; a term gated on a variable the core does not have is never active, so
 /// it is left out too. The result is bit-identical to the interpreted model.
-fn compiled_model(name: &str, what: &str, model: &estimator_core::sparse::SparseModel, vars: &[&str; 6]) -> String {
-    use estimator_core::coeffs::MAX_VARS;
+fn compiled_model(
+    name: &str,
+    what: &str,
+    model: &estimator_core::sparse::SparseModel,
+    vars: &[&str; MAX_VARS],
+) -> String {
     let mut body = String::new();
     for term in model.active_terms() {
         if term.monomial.gate_mask >> MAX_VARS != 0 {
@@ -266,18 +271,19 @@ fn compiled_model(name: &str, what: &str, model: &estimator_core::sparse::Sparse
 }
 
 /// The plant's variables by index, as the generated code names them
-/// (`estimator_core::coeffs::plant_var`; index 5 is not a plant variable).
-const PLANT_VARS: [&str; 6] =
-    ["plant_var::CL_AFC", "plant_var::CMU", "plant_var::DCMU", "plant_var::ALPHA", "plant_var::CL_SLOW", "5"];
+/// (`estimator_core::coeffs::plant_var`; indices 5 and 6 are not plant variables).
+const PLANT_VARS: [&str; MAX_VARS] =
+    ["plant_var::CL_AFC", "plant_var::CMU", "plant_var::DCMU", "plant_var::ALPHA", "plant_var::CL_SLOW", "5", "6"];
 
 /// The coupling operator's variables by index (`estimator_core::coeffs::coupling_var`).
-const COUPLING_VARS: [&str; 6] = [
+const COUPLING_VARS: [&str; MAX_VARS] = [
     "coupling_var::CL_ROLL",
     "coupling_var::CL_AFC",
     "coupling_var::ALPHA",
     "coupling_var::CMU",
     "coupling_var::DCMU",
     "coupling_var::PHI",
+    "coupling_var::PHI_DOT",
 ];
 
 /// Writes the generated module's folder, whole or not at all: a folder that already holds a

@@ -11,12 +11,20 @@
 //! raises the blown half-wing's incidence (docs/equations.md, "The synthetic tunnel's model")
 //! and the roll changes it through the sideslip `~ sin alpha sin phi`, so the jet's moment
 //! carries a product of the blowing and the roll angle that the models' outputs alone do not.
-//! Such a term still vanishes without roll. The models' outputs come from replaying the core,
-//! as the paper used its models' estimates.
+//! Such a term still vanishes without roll. For the same reason the roll rate is a variable, and
+//! the products of the blowing and the roll rate are admitted without a roll-moment factor: the
+//! roll rate moves each half-wing's incidence by up to `+-p b / 2U`, so the jet's moment on a
+//! rolling wing changes with `Cmu p`, a product that neither model's output carries (the eGK's
+//! moment is a mix of the sideslip, the rate and the vortex state, in proportions that change
+//! with the motion). Such a term vanishes without blowing and without roll by its own factors.
+//! The rate enters as that incidence does: to the first power, and only beside a blowing
+//! factor (Cmu or the jets' moment), which also keeps the pool from growing by a third with
+//! terms that no mechanism asks for. The models' outputs come from replaying the core, as the
+//! paper used its models' estimates.
 
 use std::ops::Range;
 
-use estimator_core::coeffs::{MAX_TERMS, coupling_var};
+use estimator_core::coeffs::{MAX_TERMS, MAX_VARS, coupling_var};
 use estimator_core::sparse::SparseModel;
 
 use super::FitError;
@@ -27,7 +35,7 @@ use sindy::{HeldoutScore, Library, Normalisation, QrProblem, SelectionConfig, St
 
 /// Variable names of the coupling library, in the core's order
 /// (`estimator_core::coeffs::coupling_var`).
-pub const COUPLING_VARIABLES: [&str; 6] = ["cl_roll", "cl_afc", "alpha", "cmu", "dcmu", "phi"];
+pub const COUPLING_VARIABLES: [&str; 7] = ["cl_roll", "cl_afc", "alpha", "cmu", "dcmu", "phi", "phi_dot"];
 
 /// Settings of the coupling fit.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -50,7 +58,7 @@ impl Default for CouplingConfig {
 #[derive(Debug, Clone)]
 pub struct CouplingRun {
     /// Variables in the order of [`COUPLING_VARIABLES`].
-    pub variables: Vec<[f64; 6]>,
+    pub variables: Vec<[f64; MAX_VARS]>,
     /// `C_l - C_l,roll - C_l,AFC` (NaN where the balance is missing).
     pub target: Vec<f64>,
     /// Samples the candidates are fitted on (the training part less its validation part).
@@ -67,15 +75,19 @@ impl CouplingRun {
     }
 }
 
-/// The admissible library with indicator thresholds for Cmu and the roll angle.
+/// The admissible library with indicator thresholds for Cmu and the roll angle (the rules in
+/// the module's doc).
 pub fn coupling_library(degree: u8, cmu_threshold: f32, phi_threshold_rad: f32) -> Result<Library, FitError> {
     let mut library = Library::polynomial(&COUPLING_VARIABLES, degree, false)?;
     let (roll, afc) = (coupling_var::CL_ROLL, coupling_var::CL_AFC);
+    let (cmu, rate) = (coupling_var::CMU, coupling_var::PHI_DOT);
     library.exclude_where(|term| {
         let p = &term.powers();
         let has_moment = p[roll] > 0 || p[afc] > 0;
         let pure_square = (p[roll] == 2 && term.degree() == 2) || (p[afc] == 2 && term.degree() == 2);
-        !has_moment || pure_square
+        let blowing_on_rate = p[cmu] > 0 && p[rate] > 0;
+        let rate_without_blowing = p[rate] > 0 && p[cmu] == 0 && p[afc] == 0;
+        !(has_moment || blowing_on_rate) || pure_square || p[rate] > 1 || rate_without_blowing
     });
     library.gate_all("cmu")?;
     library.gate_all("phi")?;
@@ -111,7 +123,7 @@ pub fn fit_coupling(
 }
 
 /// The finite samples and targets of `runs` over the range `samples_of` picks.
-fn rows(runs: &[CouplingRun], samples_of: impl Fn(&CouplingRun) -> Range<usize>) -> (Vec<[f64; 6]>, Vec<f64>) {
+fn rows(runs: &[CouplingRun], samples_of: impl Fn(&CouplingRun) -> Range<usize>) -> (Vec<[f64; MAX_VARS]>, Vec<f64>) {
     let (mut samples, mut targets) = (Vec::new(), Vec::new());
     for run in runs {
         for k in samples_of(run) {
@@ -144,5 +156,32 @@ fn score(library: &Library, runs: &[CouplingRun], coefficients: &[f64]) -> Heldo
         one_step_rms: rms,
         free_run_rms: None,
         n_samples: effective_samples(errors.len(), lag_one_autocorrelation(&errors)),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every term has a roll-moment factor or is blowing times the roll rate; the rate appears
+    /// to the first power and only beside a blowing factor; no pure square of a moment.
+    #[test]
+    fn the_roll_rate_enters_linearly_and_only_beside_the_blowing() {
+        let library = coupling_library(3, 1e-4, 4e-3).expect("the library builds");
+        let (roll, afc, cmu, rate) =
+            (coupling_var::CL_ROLL, coupling_var::CL_AFC, coupling_var::CMU, coupling_var::PHI_DOT);
+        let powers: Vec<[u8; MAX_VARS]> = library.terms().iter().map(|term| term.powers()).collect();
+        for p in &powers {
+            assert!(p[roll] > 0 || p[afc] > 0 || (p[cmu] > 0 && p[rate] > 0), "{p:?}");
+            assert!(p[rate] <= 1, "{p:?}");
+            assert!(p[rate] == 0 || p[cmu] > 0 || p[afc] > 0, "{p:?}");
+        }
+        let has = |want: &[(usize, u8)]| {
+            powers.iter().any(|p| (0..MAX_VARS).all(|v| p[v] == want.iter().find(|w| w.0 == v).map_or(0, |w| w.1)))
+        };
+        assert!(has(&[(cmu, 1), (rate, 1)]), "Cmu p, the jet's moment through the roll rate");
+        assert!(has(&[(roll, 1), (afc, 1)]), "the paper's C_l,roll C_l,AFC");
+        assert!(!has(&[(roll, 1), (rate, 1)]), "the rate without blowing is the disturbance's, not the coupling's");
+        assert!(!has(&[(cmu, 1), (rate, 2)]), "the rate to the second power");
     }
 }

@@ -550,6 +550,7 @@ fn coupling_run(run: &Run, signals: &RunSignals, set: &CoefficientSet, split: &S
                 cmu,
                 dcmu: cmu - last_cmu,
                 phi_rad: signals.phi_rad[k],
+                phi_dot_rad_s: f64::from(output.phi_dot_rad_s),
             };
             last_cmu = cmu;
             input.variables()

@@ -17,7 +17,7 @@
 
 use std::ops::Range;
 
-use estimator_core::coeffs::{MAX_TERMS, PlantParams, plant_var};
+use estimator_core::coeffs::{MAX_TERMS, MAX_VARS, PlantParams, plant_var};
 use estimator_core::plant::Plant;
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{DMatrix, DVector, Dyn, Owned};
@@ -121,7 +121,7 @@ pub fn plant_library() -> Result<Library, FitError> {
 /// A run's regressors at every sample for jet `side`: the core's plant in f64
 /// ([`Plant::forced_variables`]) with its moment set to `cl_afc` at every sample, so that the
 /// slow state, the Cmu limit and `dCmu` are the ones the core runs.
-fn variables(signals: &RunSignals, side: usize, cl_afc: &[f64], shape: Shape) -> Vec<[f64; 6]> {
+fn variables(signals: &RunSignals, side: usize, cl_afc: &[f64], shape: Shape) -> Vec<[f64; MAX_VARS]> {
     let mut plant = Plant::<f64>::new();
     (0..signals.len())
         .map(|k| {
@@ -238,7 +238,7 @@ fn increment_rows(
     filtered: &[Vec<f64>],
     side: usize,
     shape: Shape,
-) -> (Vec<[f64; 6]>, Vec<f64>) {
+) -> (Vec<[f64; MAX_VARS]>, Vec<f64>) {
     let (mut samples, mut targets) = (Vec::new(), Vec::new());
     for (run, smooth) in runs.iter().zip(filtered) {
         let vars = variables(run.signals, side, smooth, shape);

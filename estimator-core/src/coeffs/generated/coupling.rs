@@ -5,107 +5,72 @@ use crate::sparse::{Factor, Monomial, SparseModel, Term};
 pub(super) const COUPLING: SparseModel = SparseModel {
     terms: [
         Term {
-            coeff: 15.224497,
+            coeff: 19.276062,
             monomial: Monomial {
                 factors: [Factor::Var0, Factor::Var1, Factor::One],
                 gate_mask: 40,
             },
         },
         Term {
-            coeff: -10.211983,
+            coeff: -11.70234,
             monomial: Monomial {
                 factors: [Factor::Var0, Factor::Var3, Factor::One],
                 gate_mask: 40,
             },
         },
         Term {
-            coeff: 0.33964378,
+            coeff: 0.06351076,
             monomial: Monomial {
-                factors: [Factor::Var1, Factor::Var2, Factor::One],
+                factors: [Factor::Var1, Factor::Var6, Factor::One],
                 gate_mask: 40,
             },
         },
         Term {
-            coeff: 0.08388126,
+            coeff: -0.06346224,
             monomial: Monomial {
-                factors: [Factor::Var1, Factor::Var5, Factor::One],
+                factors: [Factor::Var3, Factor::Var6, Factor::One],
                 gate_mask: 40,
             },
         },
         Term {
-            coeff: -2123.7434,
+            coeff: -1643.408,
             monomial: Monomial {
                 factors: [Factor::Var0, Factor::Var1, Factor::Var1],
                 gate_mask: 40,
             },
         },
         Term {
-            coeff: 2255.464,
+            coeff: 2726.2468,
             monomial: Monomial {
                 factors: [Factor::Var0, Factor::Var1, Factor::Var3],
                 gate_mask: 40,
             },
         },
         Term {
-            coeff: 15.537378,
-            monomial: Monomial {
-                factors: [Factor::Var0, Factor::Var2, Factor::Var3],
-                gate_mask: 40,
-            },
-        },
-        Term {
-            coeff: -386.036,
-            monomial: Monomial {
-                factors: [Factor::Var1, Factor::Var1, Factor::Var1],
-                gate_mask: 40,
-            },
-        },
-        Term {
-            coeff: -91.62881,
+            coeff: -49.208515,
             monomial: Monomial {
                 factors: [Factor::Var1, Factor::Var1, Factor::Var2],
                 gate_mask: 40,
             },
         },
         Term {
-            coeff: 1260.3801,
+            coeff: -7.05725,
             monomial: Monomial {
-                factors: [Factor::Var1, Factor::Var1, Factor::Var3],
+                factors: [Factor::Var1, Factor::Var1, Factor::Var6],
                 gate_mask: 40,
             },
         },
         Term {
-            coeff: -50.804432,
-            monomial: Monomial {
-                factors: [Factor::Var1, Factor::Var1, Factor::Var5],
-                gate_mask: 40,
-            },
-        },
-        Term {
-            coeff: -0.52399087,
-            monomial: Monomial {
-                factors: [Factor::Var1, Factor::Var2, Factor::Var2],
-                gate_mask: 40,
-            },
-        },
-        Term {
-            coeff: 86.723816,
+            coeff: 65.01156,
             monomial: Monomial {
                 factors: [Factor::Var1, Factor::Var2, Factor::Var3],
                 gate_mask: 40,
             },
         },
         Term {
-            coeff: -951.7204,
+            coeff: 12.542978,
             monomial: Monomial {
-                factors: [Factor::Var1, Factor::Var3, Factor::Var3],
-                gate_mask: 40,
-            },
-        },
-        Term {
-            coeff: 45.10289,
-            monomial: Monomial {
-                factors: [Factor::Var1, Factor::Var3, Factor::Var5],
+                factors: [Factor::Var1, Factor::Var3, Factor::Var6],
                 gate_mask: 40,
             },
         },
@@ -116,11 +81,46 @@ pub(super) const COUPLING: SparseModel = SparseModel {
                 gate_mask: 0,
             },
         },
+        Term {
+            coeff: 0.0,
+            monomial: Monomial {
+                factors: [Factor::One, Factor::One, Factor::One],
+                gate_mask: 0,
+            },
+        },
+        Term {
+            coeff: 0.0,
+            monomial: Monomial {
+                factors: [Factor::One, Factor::One, Factor::One],
+                gate_mask: 0,
+            },
+        },
+        Term {
+            coeff: 0.0,
+            monomial: Monomial {
+                factors: [Factor::One, Factor::One, Factor::One],
+                gate_mask: 0,
+            },
+        },
+        Term {
+            coeff: 0.0,
+            monomial: Monomial {
+                factors: [Factor::One, Factor::One, Factor::One],
+                gate_mask: 0,
+            },
+        },
+        Term {
+            coeff: 0.0,
+            monomial: Monomial {
+                factors: [Factor::One, Factor::One, Factor::One],
+                gate_mask: 0,
+            },
+        },
     ],
-    n_terms: 15,
-    gate_threshold: [0.0, 0.0, 0.0, 0.00009207697, 0.0, 0.004363323],
+    n_terms: 10,
+    gate_threshold: [0.0, 0.0, 0.0, 0.00009207697, 0.0, 0.004363323, 0.0],
 };
-/// `DEFAULT.coupling` as straight-line code (15 terms), bit-identical to `SparseModel::eval` of the
+/// `DEFAULT.coupling` as straight-line code (10 terms), bit-identical to `SparseModel::eval` of the
 /// tables.
 #[inline]
 #[must_use]
@@ -129,99 +129,64 @@ pub(in crate::coeffs) fn coupling(x: &[f32; MAX_VARS]) -> f32 {
     if x[coupling_var::CMU].abs() > 0.00009207697f32
         && x[coupling_var::PHI].abs() > 0.004363323f32
     {
-        sum += 15.224497f32 * x[coupling_var::CL_ROLL] * x[coupling_var::CL_AFC];
+        sum += 19.276062f32 * x[coupling_var::CL_ROLL] * x[coupling_var::CL_AFC];
     }
     if x[coupling_var::CMU].abs() > 0.00009207697f32
         && x[coupling_var::PHI].abs() > 0.004363323f32
     {
-        sum += -10.211983f32 * x[coupling_var::CL_ROLL] * x[coupling_var::CMU];
+        sum += -11.70234f32 * x[coupling_var::CL_ROLL] * x[coupling_var::CMU];
     }
     if x[coupling_var::CMU].abs() > 0.00009207697f32
         && x[coupling_var::PHI].abs() > 0.004363323f32
     {
-        sum += 0.33964378f32 * x[coupling_var::CL_AFC] * x[coupling_var::ALPHA];
+        sum += 0.06351076f32 * x[coupling_var::CL_AFC] * x[coupling_var::PHI_DOT];
     }
     if x[coupling_var::CMU].abs() > 0.00009207697f32
         && x[coupling_var::PHI].abs() > 0.004363323f32
     {
-        sum += 0.08388126f32 * x[coupling_var::CL_AFC] * x[coupling_var::PHI];
+        sum += -0.06346224f32 * x[coupling_var::CMU] * x[coupling_var::PHI_DOT];
     }
     if x[coupling_var::CMU].abs() > 0.00009207697f32
         && x[coupling_var::PHI].abs() > 0.004363323f32
     {
         sum
-            += -2123.7434f32 * x[coupling_var::CL_ROLL] * x[coupling_var::CL_AFC]
+            += -1643.408f32 * x[coupling_var::CL_ROLL] * x[coupling_var::CL_AFC]
                 * x[coupling_var::CL_AFC];
     }
     if x[coupling_var::CMU].abs() > 0.00009207697f32
         && x[coupling_var::PHI].abs() > 0.004363323f32
     {
         sum
-            += 2255.464f32 * x[coupling_var::CL_ROLL] * x[coupling_var::CL_AFC]
+            += 2726.2468f32 * x[coupling_var::CL_ROLL] * x[coupling_var::CL_AFC]
                 * x[coupling_var::CMU];
     }
     if x[coupling_var::CMU].abs() > 0.00009207697f32
         && x[coupling_var::PHI].abs() > 0.004363323f32
     {
         sum
-            += 15.537378f32 * x[coupling_var::CL_ROLL] * x[coupling_var::ALPHA]
-                * x[coupling_var::CMU];
-    }
-    if x[coupling_var::CMU].abs() > 0.00009207697f32
-        && x[coupling_var::PHI].abs() > 0.004363323f32
-    {
-        sum
-            += -386.036f32 * x[coupling_var::CL_AFC] * x[coupling_var::CL_AFC]
-                * x[coupling_var::CL_AFC];
-    }
-    if x[coupling_var::CMU].abs() > 0.00009207697f32
-        && x[coupling_var::PHI].abs() > 0.004363323f32
-    {
-        sum
-            += -91.62881f32 * x[coupling_var::CL_AFC] * x[coupling_var::CL_AFC]
+            += -49.208515f32 * x[coupling_var::CL_AFC] * x[coupling_var::CL_AFC]
                 * x[coupling_var::ALPHA];
     }
     if x[coupling_var::CMU].abs() > 0.00009207697f32
         && x[coupling_var::PHI].abs() > 0.004363323f32
     {
         sum
-            += 1260.3801f32 * x[coupling_var::CL_AFC] * x[coupling_var::CL_AFC]
+            += -7.05725f32 * x[coupling_var::CL_AFC] * x[coupling_var::CL_AFC]
+                * x[coupling_var::PHI_DOT];
+    }
+    if x[coupling_var::CMU].abs() > 0.00009207697f32
+        && x[coupling_var::PHI].abs() > 0.004363323f32
+    {
+        sum
+            += 65.01156f32 * x[coupling_var::CL_AFC] * x[coupling_var::ALPHA]
                 * x[coupling_var::CMU];
     }
     if x[coupling_var::CMU].abs() > 0.00009207697f32
         && x[coupling_var::PHI].abs() > 0.004363323f32
     {
         sum
-            += -50.804432f32 * x[coupling_var::CL_AFC] * x[coupling_var::CL_AFC]
-                * x[coupling_var::PHI];
-    }
-    if x[coupling_var::CMU].abs() > 0.00009207697f32
-        && x[coupling_var::PHI].abs() > 0.004363323f32
-    {
-        sum
-            += -0.52399087f32 * x[coupling_var::CL_AFC] * x[coupling_var::ALPHA]
-                * x[coupling_var::ALPHA];
-    }
-    if x[coupling_var::CMU].abs() > 0.00009207697f32
-        && x[coupling_var::PHI].abs() > 0.004363323f32
-    {
-        sum
-            += 86.723816f32 * x[coupling_var::CL_AFC] * x[coupling_var::ALPHA]
-                * x[coupling_var::CMU];
-    }
-    if x[coupling_var::CMU].abs() > 0.00009207697f32
-        && x[coupling_var::PHI].abs() > 0.004363323f32
-    {
-        sum
-            += -951.7204f32 * x[coupling_var::CL_AFC] * x[coupling_var::CMU]
-                * x[coupling_var::CMU];
-    }
-    if x[coupling_var::CMU].abs() > 0.00009207697f32
-        && x[coupling_var::PHI].abs() > 0.004363323f32
-    {
-        sum
-            += 45.10289f32 * x[coupling_var::CL_AFC] * x[coupling_var::CMU]
-                * x[coupling_var::PHI];
+            += 12.542978f32 * x[coupling_var::CL_AFC] * x[coupling_var::CMU]
+                * x[coupling_var::PHI_DOT];
     }
     sum
 }

@@ -122,7 +122,7 @@ pub(super) const PLANT: [PlantParams; 2] = [
                 },
             ],
             n_terms: 15,
-            gate_threshold: [0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+            gate_threshold: [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
         },
     },
     PlantParams {
@@ -244,7 +244,7 @@ pub(super) const PLANT: [PlantParams; 2] = [
                 },
             ],
             n_terms: 15,
-            gate_threshold: [0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+            gate_threshold: [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
         },
     },
 ];
