@@ -84,10 +84,14 @@ pub fn coupling_library(degree: u8, cmu_threshold: f32, phi_threshold_rad: f32) 
     library.exclude_where(|term| {
         let p = &term.powers();
         let has_moment = p[roll] > 0 || p[afc] > 0;
-        let pure_square = (p[roll] == 2 && term.degree() == 2) || (p[afc] == 2 && term.degree() == 2);
-        let blowing_on_rate = p[cmu] > 0 && p[rate] > 0;
-        let rate_without_blowing = p[rate] > 0 && p[cmu] == 0 && p[afc] == 0;
-        !(has_moment || blowing_on_rate) || pure_square || p[rate] > 1 || rate_without_blowing
+        let pure_square = (p[roll] == 2 || p[afc] == 2) && term.degree() == 2;
+        let rate_as_incidence = match p[rate] {
+            0 => true,
+            1 => p[cmu] > 0 || p[afc] > 0,
+            _ => false,
+        };
+        let admissible = (has_moment || (p[cmu] > 0 && p[rate] > 0)) && !pure_square && rate_as_incidence;
+        !admissible
     });
     library.gate_all("cmu")?;
     library.gate_all("phi")?;
