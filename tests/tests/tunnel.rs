@@ -204,6 +204,30 @@ fn scenario_file_switches_effects_and_overrides_parameters() {
     assert!(error.contains("clp_typo"), "{error}");
 }
 
+/// The scenario files the docs tell users to simulate (firmware-sim/scenarios) load, and the
+/// mismatched-eGK one is the default wing with only its vortex slowed: its pressure taps and
+/// everything else stay the default campaign's, so the eGK fitted there is wrong for it alone.
+#[test]
+fn committed_scenario_files_load_and_the_mismatched_egk_one_slows_only_the_vortex() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../firmware-sim/scenarios");
+    let mut names = Vec::new();
+    for entry in std::fs::read_dir(&dir).expect("the scenarios folder") {
+        let path = entry.expect("a folder entry").path();
+        Scenario::from_file(&path).unwrap_or_else(|err| panic!("{}: {err}", path.display()));
+        names.push(path.file_name().expect("a file name").to_string_lossy().into_owned());
+    }
+    assert!(names.contains(&"mismatched-egk.toml".to_owned()), "{names:?}");
+    let mismatched = Scenario::from_file(&dir.join("mismatched-egk.toml")).expect("loads");
+    let default = Scenario::default();
+    assert!(mismatched.aero.tau1_s > 1.5 * default.aero.tau1_s, "{}", mismatched.aero.tau1_s);
+    let slowed_back = Scenario {
+        seed: default.seed,
+        aero: firmware_sim::tunnel::params::AeroParams { tau1_s: default.aero.tau1_s, ..mismatched.aero },
+        ..mismatched
+    };
+    assert_eq!(slowed_back, default);
+}
+
 #[test]
 fn default_scenario_has_no_effect_and_is_deterministic() {
     assert!(Scenario::default().effects.on().is_empty());
