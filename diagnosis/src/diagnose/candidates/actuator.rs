@@ -42,6 +42,13 @@ const VALVE_ZETA_FINE: [f64; 5] = [0.2, 0.3, 0.45, 0.7, 1.0];
 /// Shares of the delay a smoothing after it may take ("well under the delay").
 const SMOOTHING_SHARES: [f64; 2] = [0.1, 0.25];
 
+/// Delays of each jet tried around the best delay of both, as multiples of it: one line may be
+/// a few times the other's length (a valve near one jet, a long hose to the other), so from a
+/// third to twice the shared delay, eleven values a jet, each a fifth above the one before (the
+/// pair is not refined further).
+const PER_JET_RANGE: (f64, f64) = (1.0 / 3.0, 2.0);
+const PER_JET_VALUES: usize = 11;
+
 impl ActuatorDelay {
     const COARSE: usize = 24;
 
@@ -80,7 +87,7 @@ impl BalanceCandidate for ActuatorDelay {
             .collect()
     }
 
-    fn refine(&self, best: &Shape, sample_hz: f64, _context: &Context<'_>) -> Vec<Shape> {
+    fn refine(&self, best: &Shape, sample_hz: f64, context: &Context<'_>) -> Vec<Shape> {
         let Shape::Delay { delay_s, jets, .. } = *best else { return Vec::new() };
         let low = Self::delay_low_s(sample_hz);
         let ratio = grid_ratio(low, DELAY_MAX_S, Self::COARSE);
@@ -93,6 +100,20 @@ impl BalanceCandidate for ActuatorDelay {
                 shapes.push(Shape::Delay { delay_s: delay_s - smoothing_s, jets, smoothing_s });
             }
         }
+        // A delay per jet where a shared delay (or one jet's) led: a sum of two moments each
+        // delayed its own way otherwise reads as one smoothed by a low-pass. Pure delays only:
+        // they shift the sim's own moments, where a smoothing re-runs the plant for every pair
+        // (a third more time per diagnosis), and a smoothing "well under the delay" moves the
+        // fit little beside a delay per jet.
+        if context.two_jets {
+            let per_jet = log_grid(PER_JET_RANGE.0 * delay_s, PER_JET_RANGE.1 * delay_s, PER_JET_VALUES);
+            for &port_s in &per_jet {
+                for &starboard_s in per_jet.iter().filter(|&&other| other != port_s) {
+                    let (port_s, starboard_s) = (port_s.clamp(low, DELAY_MAX_S), starboard_s.clamp(low, DELAY_MAX_S));
+                    shapes.push(Shape::DelayPerJet { port_s, starboard_s });
+                }
+            }
+        }
         shapes
     }
 
@@ -100,11 +121,18 @@ impl BalanceCandidate for ActuatorDelay {
     /// response to `Cmu(t - d)` is its response to `Cmu` delayed by `d`: the delay shifts the
     /// sim's own moment of the chosen jets, and only a smoothing re-runs the plant.
     fn columns(&self, shape: &Shape, run: &RunStreams, _run_idx: usize, context: &Context<'_>) -> Vec<Vec<f64>> {
-        let Shape::Delay { delay_s, jets, smoothing_s } = *shape else { return Vec::new() };
+        // Per jet: the delay in samples, or none (a jet the form leaves alone).
+        let (delays_s, jets, smoothing_s) = match *shape {
+            Shape::Delay { delay_s, jets, smoothing_s } => {
+                let of = |side: Jets| (jets == Jets::Both || jets == side).then_some(delay_s);
+                ([of(Jets::Port), of(Jets::Starboard)], jets, smoothing_s)
+            }
+            Shape::DelayPerJet { port_s, starboard_s } => ([Some(port_s), Some(starboard_s)], Jets::Both, 0.0),
+            _ => return Vec::new(),
+        };
         if !run.blows() {
             return vec![vec![0.0; run.len()]];
         }
-        let delay_samples = delay_s * run.sample_hz;
         let dt_s = 1.0 / run.sample_hz;
         let moments: [Vec<f64>; 2] = if smoothing_s > 0.0 {
             let smoothed = jets.apply(&run.cmu, |cmu| first_order_lag(cmu, smoothing_s, dt_s));
@@ -112,7 +140,10 @@ impl BalanceCandidate for ActuatorDelay {
         } else {
             run.cl_afc_side.clone()
         };
-        let shifted = jets.apply(&moments, |moment| fractional_delay(moment, delay_samples));
+        let shifted: [Vec<f64>; 2] = [0, 1].map(|side| match delays_s[side] {
+            Some(delay_s) => fractional_delay(&moments[side], delay_s * run.sample_hz),
+            None => moments[side].clone(),
+        });
         vec![
             (0..run.len())
                 .map(|i| shifted[0][i] + shifted[1][i] - run.cl_afc_side[0][i] - run.cl_afc_side[1][i])
@@ -288,5 +319,38 @@ mod tests {
         // Equal but for the plant's own start from rest, which the shift moves too.
         let worst = column.iter().zip(&want).map(|(c, w)| (c - w).abs()).fold(0.0, f64::max);
         assert!(peak > 0.0 && worst <= 0.01 * peak, "worst {worst} of {peak}");
+    }
+
+    /// A delay per jet shifts each jet's plant moment by its own delay, and a shared delay
+    /// anywhere between the two fits that worse: the form a line per jet needs.
+    #[test]
+    fn a_delay_per_jet_shifts_each_jets_moment_by_its_own_delay() {
+        let context = crate::diagnose::candidates::test_context();
+        let n = 800;
+        let mut run = crate::diagnose::streams::synthetic_run(1000.0, vec![vec![0.0; n]], vec![vec![0.0; n]]);
+        run.kind = firmware_sim::dataset::RunKind::Actuation;
+        let pulse = |start: usize| (0..n).map(|i| if (start..start + 200).contains(&i) { 0.01 } else { 0.0 }).collect();
+        run.cmu = [pulse(100), pulse(300)];
+        run.cl_afc_side = run.plant_sides(context.set, &run.cmu);
+        let shape = Shape::DelayPerJet { port_s: 0.03, starboard_s: 0.08 };
+        let column = &ActuatorDelay.columns(&shape, &run, 0, &context)[0];
+        let want: Vec<f64> = (0..n)
+            .map(|i| {
+                fractional_delay(&run.cl_afc_side[0], 30.0)[i] + fractional_delay(&run.cl_afc_side[1], 80.0)[i]
+                    - run.cl_afc_side[0][i]
+                    - run.cl_afc_side[1][i]
+            })
+            .collect();
+        let worst = column.iter().zip(&want).map(|(c, w)| (c - w).abs()).fold(0.0, f64::max);
+        assert!(worst < 1e-15, "{worst}");
+        let sse = |shape: &Shape| {
+            let column = &ActuatorDelay.columns(shape, &run, 0, &context)[0];
+            column.iter().zip(&want).map(|(c, w)| (c - w).powi(2)).sum::<f64>()
+        };
+        let total: f64 = want.iter().map(|w| w * w).sum();
+        for delay_s in [0.03, 0.045, 0.055, 0.065, 0.08] {
+            let shared = sse(&Shape::Delay { delay_s, jets: Jets::Both, smoothing_s: 0.0 });
+            assert!(shared > 0.05 * total, "{delay_s}: {shared} of {total}");
+        }
     }
 }

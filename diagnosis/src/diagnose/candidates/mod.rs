@@ -154,6 +154,12 @@ pub struct Form {
 pub enum Shape {
     /// Nothing to profile: the columns are fixed.
     Fixed,
+    /// A weight moment whose sine and cosine parts are the same at every angle of attack, or
+    /// each turn with the pitch as `a cos(alpha) + b sin(alpha)` (`pitched`).
+    Weight {
+        /// Whether the parts turn with the pitch.
+        pitched: bool,
+    },
     /// A pure delay of one jet or both, alone or followed by a short smoothing.
     Delay {
         /// Delay, s.
@@ -162,6 +168,13 @@ pub enum Shape {
         jets: Jets,
         /// Time constant of a first-order smoothing after the delay, s (0: none).
         smoothing_s: f64,
+    },
+    /// A pure delay of each jet, each its own (a pneumatic line per jet).
+    DelayPerJet {
+        /// Delay of the port jet, s.
+        port_s: f64,
+        /// Delay of the starboard jet, s.
+        starboard_s: f64,
     },
     /// A first-order lag of one jet or both.
     Lag {
@@ -446,9 +459,14 @@ impl Form {
     #[must_use]
     pub const fn n_profiled(&self) -> usize {
         match self.shape {
-            Shape::Fixed | Shape::Damping { .. } | Shape::Trend { .. } | Shape::Wander { .. } => 0,
+            Shape::Fixed
+            | Shape::Weight { .. }
+            | Shape::Damping { .. }
+            | Shape::Trend { .. }
+            | Shape::Wander { .. } => 0,
             Shape::Lag { .. } | Shape::RateLimit { .. } | Shape::Settle { .. } => 1,
             Shape::Delay { smoothing_s, .. } => 1 + (smoothing_s > 0.0) as usize,
+            Shape::DelayPerJet { .. } => 2,
             Shape::SecondOrderLag { .. } => 2,
             Shape::SlowState { at_alpha_deg, .. } => 1 + at_alpha_deg.is_some() as usize,
             Shape::Tare { corner_hz, .. } => corner_hz.is_some() as usize,
@@ -464,8 +482,9 @@ impl Form {
     #[must_use]
     pub const fn coordinate(&self) -> Option<(&'static str, f64)> {
         match self.shape {
-            Shape::Fixed | Shape::Damping { .. } | Shape::Steps { .. } => None,
+            Shape::Fixed | Shape::Weight { .. } | Shape::Damping { .. } | Shape::Steps { .. } => None,
             Shape::Delay { delay_s, .. } => Some(("delay_s", delay_s)),
+            Shape::DelayPerJet { port_s, starboard_s, .. } => Some(("delay_s", port_s.max(starboard_s))),
             Shape::Lag { tau_s, .. }
             | Shape::SecondOrderLag { tau_s, .. }
             | Shape::SlowState { tau_s, .. }
@@ -487,11 +506,19 @@ impl Form {
     pub fn entries(&self) -> Vec<(&'static str, FormValue)> {
         let mut out = match self.shape {
             Shape::Fixed => Vec::new(),
+            Shape::Weight { pitched } => vec![("pitched", FormValue::Flag(pitched))],
             Shape::Damping { law } => vec![("law", FormValue::Choice(law.name()))],
             Shape::Delay { delay_s, jets, smoothing_s } => vec![
                 ("delay_s", FormValue::Number(delay_s)),
                 ("jets", FormValue::Choice(jets.name())),
                 ("smoothing_s", FormValue::Number(smoothing_s)),
+            ],
+            // The longer delay is the effect's `delay_s`, as a delay of one jet names that jet's.
+            Shape::DelayPerJet { port_s, starboard_s } => vec![
+                ("delay_s", FormValue::Number(port_s.max(starboard_s))),
+                ("delay_port_s", FormValue::Number(port_s)),
+                ("delay_stbd_s", FormValue::Number(starboard_s)),
+                ("jets", FormValue::Choice("each")),
             ],
             Shape::Lag { tau_s, jets } => {
                 vec![

@@ -17,8 +17,11 @@ const G_MPS2: f64 = 9.806_65;
 pub struct InertialTare;
 
 /// `gravity_tare`: `m g d sin(phi + phase) / (q S b)` (the weight moment about the roll axis,
-/// with the offset it leaves at `phi = 0`), one size or one per angle of attack (a centre of
-/// gravity whose arm about the roll axis turns with the pitch, e.g. with cos alpha).
+/// with the offset it leaves at `phi = 0`), the same at every angle of attack, or turned by the
+/// pitch as a centre of gravity fixed in the wing is: the part in `sin(phi)` (the offset normal
+/// to the wing) `a cos(alpha) + b sin(alpha)`, the part in `cos(phi)` (the offset along the
+/// span) `c + d cos(alpha)`, whether the wing rolls about its own axis or the wind's
+/// (docs/diagnosis.md, Inertial and gravity tares, derives both).
 #[derive(Debug, Clone, Copy)]
 pub struct GravityTare;
 
@@ -95,7 +98,7 @@ const TARE_CORNERS: usize = 10;
 
 impl BalanceCandidate for GravityTare {
     fn regressors(&self) -> &'static str {
-        "sin(phi) and cos(phi) - 1 over q S b (a centre of gravity off the axis both ways)"
+        "sin(phi) and cos(phi) over q S b (a centre of gravity off the axis both ways), the same at every angle of attack or each times cos(alpha) and sin(alpha) (the arm turned by the pitch)"
     }
 
     fn effect(&self) -> Option<Effect> {
@@ -106,27 +109,55 @@ impl BalanceCandidate for GravityTare {
         "wind-off runs at held roll angles (the weight moment stays) or a second free-stream speed"
     }
 
-    fn schedulable(&self) -> bool {
-        true
+    /// The pitched form only with two angles of attack or more: at one, `cos(alpha)` and
+    /// `sin(alpha)` are one column.
+    fn shapes(&self, _sample_hz: f64, context: &Context<'_>) -> Vec<Shape> {
+        let mut shapes = vec![Shape::Weight { pitched: false }];
+        if context.alphas_deg.len() >= 2 {
+            shapes.push(Shape::Weight { pitched: true });
+        }
+        shapes
     }
 
-    fn shapes(&self, _sample_hz: f64, _context: &Context<'_>) -> Vec<Shape> {
-        vec![Shape::Fixed]
+    fn columns(&self, shape: &Shape, run: &RunStreams, _run_idx: usize, _context: &Context<'_>) -> Vec<Vec<f64>> {
+        let sin_phi: Vec<f64> = run.phi_rad.iter().map(|phi| phi.sin()).collect();
+        let cos_phi: Vec<f64> = run.phi_rad.iter().map(|phi| phi.cos()).collect();
+        if !matches!(shape, Shape::Weight { pitched: true }) {
+            return vec![sin_phi, cos_phi];
+        }
+        let (sin_alpha, cos_alpha) = run.alpha_deg.to_radians().sin_cos();
+        let scaled = |column: &[f64], by: f64| column.iter().map(|v| v * by).collect::<Vec<f64>>();
+        vec![scaled(&sin_phi, cos_alpha), scaled(&cos_phi, cos_alpha), scaled(&sin_phi, sin_alpha), cos_phi]
     }
 
-    fn columns(&self, _shape: &Shape, run: &RunStreams, _run_idx: usize, _context: &Context<'_>) -> Vec<Vec<f64>> {
-        vec![run.phi_rad.iter().map(|phi| phi.sin()).collect(), run.phi_rad.iter().map(|phi| phi.cos()).collect()]
-    }
-
-    fn params(&self, _shape: &Shape, beta: &[f64], context: &Context<'_>, _columns: &[Vec<Vec<f64>>]) -> Params {
+    /// The weight moment, mass offset and phase; in the pitched form, at each angle of attack of
+    /// the recording (`weight_moment_nm@12.2`).
+    fn params(&self, shape: &Shape, beta: &[f64], context: &Context<'_>, _columns: &[Vec<Vec<f64>>]) -> Params {
+        let coefficient = |idx: usize| beta.get(idx).copied().unwrap_or(0.0);
         // m g d sin(phi + p) = m g d cos p sin(phi) + m g d sin p cos(phi).
-        let (b0, b1) = (beta.first().copied().unwrap_or(0.0), beta.get(1).copied().unwrap_or(0.0));
-        let moment_nm = context.moment_scale_nm * b0.hypot(b1);
-        vec![
-            ("weight_moment_nm".into(), moment_nm),
-            ("mass_offset_kgm".into(), moment_nm / G_MPS2),
-            ("phase_deg".into(), b1.atan2(b0).to_degrees()),
-        ]
+        let weight = |b0: f64, b1: f64, suffix: &str| {
+            let moment_nm = context.moment_scale_nm * b0.hypot(b1);
+            vec![
+                (format!("weight_moment_nm{suffix}"), moment_nm),
+                (format!("mass_offset_kgm{suffix}"), moment_nm / G_MPS2),
+                (format!("phase_deg{suffix}"), b1.atan2(b0).to_degrees()),
+            ]
+        };
+        if !matches!(shape, Shape::Weight { pitched: true }) {
+            return weight(coefficient(0), coefficient(1), "");
+        }
+        context
+            .alphas_deg
+            .iter()
+            .flat_map(|alpha_deg| {
+                let (sin_alpha, cos_alpha) = alpha_deg.to_radians().sin_cos();
+                weight(
+                    coefficient(0) * cos_alpha + coefficient(2) * sin_alpha,
+                    coefficient(1) * cos_alpha + coefficient(3),
+                    &format!("@{alpha_deg}"),
+                )
+            })
+            .collect()
     }
 }
 
@@ -163,13 +194,69 @@ mod tests {
         run.phi_rad = (0..3000).map(|i| 0.6 * (i as f64 * 0.004).sin()).collect();
         let residual: Vec<f64> =
             run.phi_rad.iter().map(|phi| moment_nm * (phi + phase).sin() / context.moment_scale_nm).collect();
-        let columns = GravityTare.columns(&Shape::Fixed, &run, 0, &context);
+        let shape = Shape::Weight { pitched: false };
+        let columns = GravityTare.columns(&shape, &run, 0, &context);
         let beta = test_fit(&columns, &residual);
-        let params = GravityTare.params(&Shape::Fixed, &beta, &context, &[columns]);
+        let params = GravityTare.params(&shape, &beta, &context, &[columns]);
         let get = |name: &str| params.iter().find(|(n, _)| n == name).map(|(_, v)| *v).unwrap();
         assert!((get("weight_moment_nm") - moment_nm).abs() < 1e-9);
         assert!((get("mass_offset_kgm") - moment_nm / 9.806_65).abs() < 1e-9);
         assert!((get("phase_deg") - 30.0).abs() < 1e-6);
+    }
+
+    /// Three runs at 3, 12 and 18 deg rolling alike, each moment from `at_alpha`, and the
+    /// pitched form's columns and fit of every run together: `(runs' alphas, beta, residual
+    /// variance over the target's)`.
+    fn pitched_fit(at_alpha: impl Fn(f64, f64) -> f64) -> (Vec<f64>, Vec<f64>, f64) {
+        let mut context = test_context();
+        context.alphas_deg = vec![3.0, 12.0, 18.0];
+        let shape = Shape::Weight { pitched: true };
+        let (mut columns, mut target) = (vec![Vec::new(); 4], Vec::new());
+        for &alpha_deg in &context.alphas_deg {
+            let mut run = synthetic_run(1000.0, vec![vec![0.0; 3000]], vec![vec![0.0; 3000]]);
+            run.alpha_deg = alpha_deg;
+            run.phi_rad = (0..3000).map(|i| 0.6 * (i as f64 * 0.004).sin()).collect();
+            for (all, column) in columns.iter_mut().zip(GravityTare.columns(&shape, &run, 0, &context)) {
+                all.extend(column);
+            }
+            target.extend(run.phi_rad.iter().map(|phi| at_alpha(*phi, alpha_deg)));
+        }
+        let beta = test_fit(&columns, &target);
+        let left: f64 = (0..target.len())
+            .map(|i| (target[i] - columns.iter().zip(&beta).map(|(c, b)| c[i] * b).sum::<f64>()).powi(2))
+            .sum();
+        let total: f64 = target.iter().map(|v| v * v).sum();
+        (context.alphas_deg, beta, left / total)
+    }
+
+    /// A wing rolled about the wind's axis, its centre of gravity ahead of the axis on the
+    /// wing's chord, above it and to one side: the offset normal to the wing turns with the
+    /// pitch (`0.05 cos(alpha) + 0.4 sin(alpha)`), the one along the span does not (0.1). The
+    /// pitched form spans it and gives each angle's moment and phase back.
+    #[test]
+    fn gravity_tare_pitched_form_recovers_an_arm_that_turns_with_the_pitch() {
+        let normal = |alpha_deg: f64| 0.05 * alpha_deg.to_radians().cos() + 0.4 * alpha_deg.to_radians().sin();
+        let truth = |phi: f64, alpha_deg: f64| (normal(alpha_deg) * phi.sin() + 0.1 * phi.cos()) / 2.0;
+        let (alphas_deg, beta, left) = pitched_fit(truth);
+        assert!(left < 1e-12, "{left}");
+        let mut context = test_context();
+        context.alphas_deg = alphas_deg;
+        let params = GravityTare.params(&Shape::Weight { pitched: true }, &beta, &context, &[]);
+        let get = |name: &str| params.iter().find(|(n, _)| n == name).map(|(_, v)| *v).unwrap();
+        for alpha_deg in [3.0, 12.0, 18.0] {
+            let moment_nm = normal(alpha_deg).hypot(0.1);
+            assert!((get(&format!("weight_moment_nm@{alpha_deg}")) - moment_nm).abs() < 1e-9);
+            let phase_deg = 0.1f64.atan2(normal(alpha_deg)).to_degrees();
+            assert!((get(&format!("phase_deg@{alpha_deg}")) - phase_deg).abs() < 1e-6);
+        }
+    }
+
+    /// A moment at one angle of attack alone is no weight: a centre of gravity fixed in the wing
+    /// weighs at every pitch, so the pitched form leaves most of it.
+    #[test]
+    fn gravity_tare_pitched_form_does_not_span_a_moment_at_one_angle_only() {
+        let (_, _, left) = pitched_fit(|phi, alpha_deg| if alpha_deg == 12.0 { phi.sin() } else { 0.0 });
+        assert!(left > 0.3, "{left}");
     }
 
     /// A tare seen through the balance's 20 Hz low-pass with a different inertia per run is
