@@ -121,7 +121,7 @@ impl BalanceCandidate for ActuatorDelay {
     /// response to `Cmu(t - d)` is its response to `Cmu` delayed by `d`: the delay shifts the
     /// sim's own moment of the chosen jets, and only a smoothing re-runs the plant.
     fn columns(&self, shape: &Shape, run: &RunStreams, _run_idx: usize, context: &Context<'_>) -> Vec<Vec<f64>> {
-        // Per jet: the delay in samples, or none (a jet the form leaves alone).
+        // Per jet: the delay, s, or none (a jet the form leaves alone).
         let (delays_s, jets, smoothing_s) = match *shape {
             Shape::Delay { delay_s, jets, smoothing_s } => {
                 let of = |side: Jets| (jets == Jets::Both || jets == side).then_some(delay_s);
@@ -299,6 +299,17 @@ mod tests {
         assert_eq!(&limited[2..8], &[0.0, 0.25, 0.5, 0.75, 1.0, 1.0]);
     }
 
+    /// An actuation run of `n` samples at 1 kHz whose jets each blow one 0.2 s pulse, from the
+    /// samples `starts` (port, starboard), with the sim's plant moments of that blowing.
+    fn blowing_run(context: &Context<'_>, n: usize, starts: [usize; 2]) -> RunStreams {
+        let mut run = crate::diagnose::streams::synthetic_run(1000.0, vec![vec![0.0; n]], vec![vec![0.0; n]]);
+        run.kind = firmware_sim::dataset::RunKind::Actuation;
+        run.cmu =
+            starts.map(|start| (0..n).map(|i| if (start..start + 200).contains(&i) { 0.01 } else { 0.0 }).collect());
+        run.cl_afc_side = run.plant_sides(context.set, &run.cmu);
+        run
+    }
+
     /// The delay's column shifts the sim's own plant moment of the chosen jet: the plant is time
     /// invariant, so delaying its input delays its output. A port-only delay leaves the
     /// starboard jet's moment as it was.
@@ -306,11 +317,7 @@ mod tests {
     fn a_delay_of_one_jet_shifts_that_jets_moment() {
         let context = crate::diagnose::candidates::test_context();
         let n = 600;
-        let mut run = crate::diagnose::streams::synthetic_run(1000.0, vec![vec![0.0; n]], vec![vec![0.0; n]]);
-        run.kind = firmware_sim::dataset::RunKind::Actuation;
-        let pulse: Vec<f64> = (0..n).map(|i| if (100..300).contains(&i) { 0.01 } else { 0.0 }).collect();
-        run.cmu = [pulse.clone(), pulse];
-        run.cl_afc_side = run.plant_sides(context.set, &run.cmu);
+        let run = blowing_run(&context, n, [100, 100]);
         let shape = Shape::Delay { delay_s: 0.02, jets: Jets::Port, smoothing_s: 0.0 };
         let column = &ActuatorDelay.columns(&shape, &run, 0, &context)[0];
         let rerun = run.plant_sides(context.set, &Jets::Port.apply(&run.cmu, |c| fractional_delay(c, 20.0)));
@@ -327,20 +334,13 @@ mod tests {
     fn a_delay_per_jet_shifts_each_jets_moment_by_its_own_delay() {
         let context = crate::diagnose::candidates::test_context();
         let n = 800;
-        let mut run = crate::diagnose::streams::synthetic_run(1000.0, vec![vec![0.0; n]], vec![vec![0.0; n]]);
-        run.kind = firmware_sim::dataset::RunKind::Actuation;
-        let pulse = |start: usize| (0..n).map(|i| if (start..start + 200).contains(&i) { 0.01 } else { 0.0 }).collect();
-        run.cmu = [pulse(100), pulse(300)];
-        run.cl_afc_side = run.plant_sides(context.set, &run.cmu);
+        let run = blowing_run(&context, n, [100, 300]);
         let shape = Shape::DelayPerJet { port_s: 0.03, starboard_s: 0.08 };
         let column = &ActuatorDelay.columns(&shape, &run, 0, &context)[0];
-        let want: Vec<f64> = (0..n)
-            .map(|i| {
-                fractional_delay(&run.cl_afc_side[0], 30.0)[i] + fractional_delay(&run.cl_afc_side[1], 80.0)[i]
-                    - run.cl_afc_side[0][i]
-                    - run.cl_afc_side[1][i]
-            })
-            .collect();
+        let (port, starboard) =
+            (fractional_delay(&run.cl_afc_side[0], 30.0), fractional_delay(&run.cl_afc_side[1], 80.0));
+        let want: Vec<f64> =
+            (0..n).map(|i| port[i] + starboard[i] - run.cl_afc_side[0][i] - run.cl_afc_side[1][i]).collect();
         let worst = column.iter().zip(&want).map(|(c, w)| (c - w).abs()).fold(0.0, f64::max);
         assert!(worst < 1e-15, "{worst}");
         let sse = |shape: &Shape| {
