@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # A slice of a blind campaign on the second tunnel (campaign.py): one clean case and one case
-# of each of half the other classes, drawn with the seed (so every class is flown every few
-# commits, and CI stays short), the model fitted on the campaign's clean recording and every
+# of each of a third of the other classes, drawn with the seed (so every class is flown every
+# few commits, and CI stays short), the model fitted on the campaign's clean recording and every
 # case recorded with its own seed (excitation and noise differ from the fit's), the truth
 # sealed before the diagnosis runs. `validate-diagnosis --campaign` prints the criterion table;
 # this script fails if the command fails, if a case is not scored, if a sealed truth does not
@@ -27,7 +27,7 @@ classes="$(cd "$here" && python3 -c '
 import random, sys
 from campaign import CLASSES
 others = [name for name in CLASSES if name != "none"]
-print(",".join(["none"] + sorted(random.Random(int(sys.argv[1])).sample(others, len(others) // 2))))
+print(",".join(["none"] + sorted(random.Random(int(sys.argv[1])).sample(others, len(others) // 3))))
 ' "$seed")"
 echo "foreign campaign slice: seed $seed, classes $classes (reproduce: tools/foreign-tunnel/campaign_check.sh $work $seed)"
 rm -rf "$work/campaign" "$work/report"
