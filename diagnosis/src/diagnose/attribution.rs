@@ -216,6 +216,8 @@ fn cross_validate(
                 .collect()
         })
         .collect();
+    let fold_samples: Vec<regression::FitSamples> =
+        folds.iter().map(|fold| regression::FitSamples::new(fold)).collect();
     // Per form, per fold: its evidence without the fold, and what it does on the fold.
     let per_form: Vec<Vec<(f64, FoldSums)>> = forms
         .par_iter()
@@ -223,8 +225,9 @@ fn cross_validate(
             let columns = all_columns(candidate, form, runs, context);
             folds
                 .iter()
-                .map(|fold| {
-                    regression::fit_through_origin(fold, &columns).map_or(
+                .zip(&fold_samples)
+                .map(|(fold, samples)| {
+                    regression::fit_through_origin_on(samples, &columns).map_or(
                         (f64::NEG_INFINITY, FoldSums::default()),
                         |fit| {
                             let evidence = delta_bic(&fit, autocorrelation_time, fit.beta.len() + form.n_profiled());
@@ -319,11 +322,12 @@ pub fn profile(
     let segments = segments(runs, residuals);
     let sample_hz = runs.first()?.sample_hz;
     let forms = candidates::forms(candidate, sample_hz, context);
+    let samples = regression::FitSamples::new(&segments);
     // Each form of the family with its evidence: the best form is the one with the most evidence
     // (its columns and profiled parameters penalised), so a richer form wins only by its fit.
     let evaluate = |form: &Form| {
         let columns = all_columns(candidate, form, runs, context);
-        regression::fit_through_origin(&segments, &columns).map(|fit| {
+        regression::fit_through_origin_on(&samples, &columns).map(|fit| {
             let k = fit.beta.len() + form.n_profiled();
             let evidence = delta_bic(&fit, autocorrelation_time, k);
             (*form, fit, evidence)

@@ -337,7 +337,7 @@ pub fn diagnose(
         candidates: balance
             .first_round
             .iter()
-            .map(result::CandidateSummary::from_profiled(streams.noise_var))
+            .map(result::CandidateSummary::from_profiled(streams.noise_var, &context.alphas_deg))
             .chain(sensor.findings.iter().map(result::CandidateSummary::from_sensor))
             .collect(),
         sim: match &source {

@@ -115,23 +115,56 @@ pub fn fit_through_origin(segments: &[Segment<'_>], columns: &[Vec<Vec<f64>>]) -
 }
 
 fn fit_with(segments: &[Segment<'_>], columns: &[Vec<Vec<f64>>], centre: bool) -> Option<Fit> {
+    fit_gathered(&FitSamples::new(segments), columns, centre)
+}
+
+/// The samples a fit uses in each run (the training part less the selection part, finite
+/// residuals) and the residual there: the same for every form a family profiles, so
+/// gathered once for them all ([`fit_through_origin_on`]).
+#[derive(Debug, Clone)]
+pub struct FitSamples {
+    runs: Vec<(Vec<usize>, Vec<f64>)>,
+}
+
+impl FitSamples {
+    /// Gathers the fit's samples of every segment.
+    #[must_use]
+    pub fn new(segments: &[Segment<'_>]) -> Self {
+        let runs = segments
+            .iter()
+            .map(|segment| {
+                let idx: Vec<usize> = segment
+                    .training
+                    .clone()
+                    .filter(|&i| segment.residual[i].is_finite() && !segment.select.contains(i))
+                    .collect();
+                let r = idx.iter().map(|&i| segment.residual[i]).collect();
+                (idx, r)
+            })
+            .collect();
+        Self { runs }
+    }
+}
+
+/// As [`fit_through_origin`], on samples gathered once.
+#[must_use]
+pub fn fit_through_origin_on(samples: &FitSamples, columns: &[Vec<Vec<f64>>]) -> Option<Fit> {
+    fit_gathered(samples, columns, false)
+}
+
+fn fit_gathered(samples: &FitSamples, columns: &[Vec<Vec<f64>>], centre: bool) -> Option<Fit> {
     let p = columns.first().map_or(0, Vec::len);
     let mut xtx = DMatrix::<f64>::zeros(p, p);
     let mut xtr = DVector::<f64>::zeros(p);
     let (mut ssr_base, mut ssr_base_touched, mut n, mut n_touched) = (0.0, 0.0, 0usize, 0usize);
-    let mut touched = Vec::with_capacity(segments.len());
-    for (segment, cols) in segments.iter().zip(columns) {
-        let idx: Vec<usize> = segment
-            .training
-            .clone()
-            .filter(|&i| segment.residual[i].is_finite() && !segment.select.contains(i))
-            .collect();
+    let mut touched = Vec::with_capacity(samples.runs.len());
+    for ((idx, residual), cols) in samples.runs.iter().zip(columns) {
         if idx.is_empty() {
             touched.push(false);
             continue;
         }
         let count = idx.len() as f64;
-        let r_mean = if centre { idx.iter().map(|&i| segment.residual[i]).sum::<f64>() / count } else { 0.0 };
+        let r_mean = if centre { residual.iter().sum::<f64>() / count } else { 0.0 };
         // Only the columns that are not identically zero on this run (per-run and per-alpha
         // columns are zero elsewhere): the products among them.
         let active: Vec<usize> = (0..p).filter(|&c| idx.iter().any(|&i| cols[c][i] != 0.0)).collect();
@@ -143,8 +176,7 @@ fn fit_with(segments: &[Segment<'_>], columns: &[Vec<Vec<f64>>], centre: bool) -
                 idx.iter().map(|&i| col[i] - mean).collect()
             })
             .collect();
-        let r: Vec<f64> = idx.iter().map(|&i| segment.residual[i] - r_mean).collect();
-        let rr: f64 = r.iter().map(|v| v * v).sum();
+        let rr: f64 = residual.iter().map(|v| (v - r_mean) * (v - r_mean)).sum();
         ssr_base += rr;
         n += idx.len();
         let is_touched = centred.iter().any(|col| col.iter().any(|v| v.abs() > 0.0));
@@ -154,7 +186,7 @@ fn fit_with(segments: &[Segment<'_>], columns: &[Vec<Vec<f64>>], centre: bool) -
             ssr_base_touched += rr;
         }
         for (a, &ca) in active.iter().enumerate() {
-            xtr[ca] += centred[a].iter().zip(&r).map(|(x, y)| x * y).sum::<f64>();
+            xtr[ca] += centred[a].iter().zip(residual).map(|(x, y)| x * (y - r_mean)).sum::<f64>();
             for (b, &cb) in active.iter().enumerate().skip(a) {
                 let value: f64 = centred[a].iter().zip(&centred[b]).map(|(x, y)| x * y).sum();
                 xtx[(ca, cb)] += value;

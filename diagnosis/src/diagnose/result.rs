@@ -194,11 +194,11 @@ pub struct CandidateSummary {
 
 impl CandidateSummary {
     /// From a profiled balance candidate.
-    pub fn from_profiled(noise_var: f64) -> impl Fn(&Profiled) -> Self {
+    pub fn from_profiled(noise_var: f64, alphas_deg: &[f64]) -> impl Fn(&Profiled) -> Self + '_ {
         move |profiled| Self {
             name: profiled.candidate.name().into(),
             block: profiled.candidate.block().name().into(),
-            hyper: profiled.form.entries().into_iter().map(|(k, v)| (k.to_owned(), v.to_json())).collect(),
+            hyper: profiled.form.entries().into_iter().map(|(k, v)| (k.to_owned(), v.to_json(alphas_deg))).collect(),
             explained_to_noise: finite_or_null(profiled.explained() / noise_var.max(f64::MIN_POSITIVE)),
             selected_to_noise: finite_or_null(profiled.selected() / noise_var.max(f64::MIN_POSITIVE)),
             delta_bic: finite_or_null(profiled.delta_bic),
@@ -553,7 +553,7 @@ mod tests {
             beyond_its_range: false,
             limit_margin: f64::INFINITY,
         };
-        let summary = CandidateSummary::from_profiled(0.01)(&profiled);
+        let summary = CandidateSummary::from_profiled(0.01, &[])(&profiled);
         assert_eq!(summary.name, "actuator_delay");
         assert_eq!(summary.block, "plant");
         assert_eq!(
@@ -576,7 +576,7 @@ mod tests {
             },
             ..profiled
         };
-        let summary = CandidateSummary::from_profiled(0.01)(&degenerate);
+        let summary = CandidateSummary::from_profiled(0.01, &[])(&degenerate);
         assert_eq!(summary.delta_bic, None);
         assert!(summary.hyper["delay_s"].is_null());
     }

@@ -80,11 +80,7 @@ impl Streams {
             half_span_time_s: self.half_span_time_s,
             cmu_ref: self.runs.iter().flat_map(|run| run.cmu.iter().flatten()).copied().fold(0.0, f64::max),
             n_runs: self.runs.len(),
-            slow_tau_min_s: self
-                .runs
-                .iter()
-                .map(|run| 2.0 * f64::from(estimator_core::egk::params_at(&self.set, run.alpha_deg as f32).tau1_s))
-                .fold(0.05, f64::max),
+            slow_tau_min_s: candidates::slow_tau_min_s(&self.set, self.runs.iter().map(|run| run.alpha_deg)),
             resonance_min_hz: self.resonance_min_hz,
             resonance_seeds_hz: self.resonance_seeds_hz.clone(),
             alphas_deg: {

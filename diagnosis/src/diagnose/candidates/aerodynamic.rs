@@ -6,8 +6,8 @@
 use firmware_sim::effect::Effect;
 
 use super::{
-    BalanceCandidate, CmuLaw, Context, DampingLaw, Drive, Params, Shape, SlowLaw, difference, first_order_lag, gains,
-    log_grid,
+    AngleSet, BalanceCandidate, CmuLaw, Context, DampingLaw, Drive, Params, Shape, SlowLaw, difference,
+    first_order_lag, gains, log_grid,
 };
 use crate::diagnose::streams::RunStreams;
 
@@ -17,9 +17,9 @@ use crate::diagnose::streams::RunStreams;
 pub struct RollDamping;
 
 /// `vortex_lag`: a second, slower flow state, tau from 30 ms (no shorter than
-/// [`Context::slow_tau_min_s`], twice the eGK's lag) to 50 times the eGK's lag (at least 5 s),
-/// driven by a motion variable or by the vortex state itself, at every angle of attack or from
-/// one angle upward (a breakdown that sets in above an angle). The time constants are profiled
+/// [`Context::slow_tau_min_s`], twice the eGK's lag where it acts) to 50 times the eGK's lag (at least 5 s),
+/// driven by a motion variable or by the vortex state itself, at every angle of attack or at
+/// some of them only (a breakdown that sets in above an angle). The time constants are profiled
 /// up to a factor `SLOW_SEARCH_MARGIN` beyond that range, and a best form at the longest is
 /// no slow state ([`BalanceCandidate::beyond_its_range`]).
 #[derive(Debug, Clone, Copy)]
@@ -99,6 +99,11 @@ impl VortexLag {
     /// the spacing that 16 gave over the contract's factor of 25.
     const COARSE: usize = 19;
 
+    /// Up to this many angles of attack, a state is profiled at every set of them; beyond it,
+    /// at every band of neighbouring angles, so that the forms grow with the square of the
+    /// angles and not as a power of two (three angles: 6 sets; nine: 44 bands).
+    const EVERY_SET_UP_TO: usize = 3;
+
     /// The contract's range of time constants, s: from 30 ms and twice the eGK's lag to 50
     /// times the eGK's lag ("2 to 50 times slower"), at least 5 s.
     fn tau_range(context: &Context<'_>) -> (f64, f64) {
@@ -134,15 +139,15 @@ impl BalanceCandidate for VortexLag {
 
     /// No per-alpha gains: the sideslip drive already grows with alpha, and a slow state with
     /// nine free gains absorbs the sim's own error from recording to recording. A state that acts
-    /// only from one angle of attack upward (vortex breakdown sets in above an angle; Nelson &
-    /// Pelletier 2003) keeps one gain and profiles the angle. A state at the lower angles only,
-    /// or at one inner angle, is not profiled: a slow state with its own gain there is what the
-    /// sim's own error at those angles looks like from recording to recording (with such bands,
-    /// clean recordings of a rig the sim fits poorly were named). The vortex state's own deficit
-    /// is the first column already, so that drive acts as the state only.
+    /// at some angles of attack only (the contract's "at every alpha or only at some"; vortex
+    /// breakdown sets in above an angle, Nelson & Pelletier 2003, and a burst vortex can also
+    /// leave the flow at the highest) keeps one gain and profiles the set of angles where it
+    /// acts ([`AngleSet::proper_sets`]). The vortex state's own deficit is the first column
+    /// already, so that drive acts as the state only.
     fn shapes(&self, _sample_hz: f64, context: &Context<'_>) -> Vec<Shape> {
-        let onsets: Vec<Option<f64>> =
-            std::iter::once(None).chain(context.alphas_deg.iter().skip(1).map(|alpha| Some(*alpha))).collect();
+        let onsets: Vec<Option<AngleSet>> = std::iter::once(None)
+            .chain(AngleSet::proper_sets(context.alphas_deg.len(), Self::EVERY_SET_UP_TO).into_iter().map(Some))
+            .collect();
         Self::taus(context, Self::COARSE)
             .into_iter()
             .flat_map(|tau_s| {
@@ -155,11 +160,11 @@ impl BalanceCandidate for VortexLag {
                         &[SlowLaw::State, SlowLaw::Deficit]
                     };
                     laws.iter().copied().flat_map(move |law| {
-                        onsets.clone().into_iter().map(move |at_alpha_deg| Shape::SlowState {
+                        onsets.clone().into_iter().map(move |at_alphas| Shape::SlowState {
                             tau_s,
                             drive,
                             law,
-                            at_alpha_deg,
+                            at_alphas,
                         })
                     })
                 })
@@ -168,11 +173,11 @@ impl BalanceCandidate for VortexLag {
     }
 
     fn refine(&self, best: &Shape, _sample_hz: f64, context: &Context<'_>) -> Vec<Shape> {
-        let Shape::SlowState { tau_s, drive, law, at_alpha_deg } = *best else { return Vec::new() };
+        let Shape::SlowState { tau_s, drive, law, at_alphas } = *best else { return Vec::new() };
         let (low, high) = Self::search_range(context);
         super::around(tau_s, super::grid_ratio(low, high, Self::COARSE), 7, low, high)
             .into_iter()
-            .map(|tau_s| Shape::SlowState { tau_s, drive, law, at_alpha_deg })
+            .map(|tau_s| Shape::SlowState { tau_s, drive, law, at_alphas })
             .collect()
     }
 
@@ -184,8 +189,8 @@ impl BalanceCandidate for VortexLag {
     /// (outside the vocabulary, or another name) explains the gap as well, and naming a
     /// "slower state" would be a guess between them.
     fn limits(&self, shape: &Shape, sample_hz: f64) -> Vec<Shape> {
-        let Shape::SlowState { drive, law, at_alpha_deg, .. } = *shape else { return Vec::new() };
-        [1.0 / sample_hz, SLOW_LIMIT_S].map(|tau_s| Shape::SlowState { tau_s, drive, law, at_alpha_deg }).to_vec()
+        let Shape::SlowState { drive, law, at_alphas, .. } = *shape else { return Vec::new() };
+        [1.0 / sample_hz, SLOW_LIMIT_S].map(|tau_s| Shape::SlowState { tau_s, drive, law, at_alphas }).to_vec()
     }
 
     /// At the longest time constant searched (`SLOW_SEARCH_MARGIN`): a static term of the
@@ -200,8 +205,8 @@ impl BalanceCandidate for VortexLag {
     /// (`LP_tau[C_l,eGK] - C_l,eGK`), and a new state driven by one of the disturbance's physical
     /// inputs, acting as itself, `LP_tau[u]`, or as its deficit, `LP_tau[u] - u`.
     fn columns(&self, shape: &Shape, run: &RunStreams, _run_idx: usize, context: &Context<'_>) -> Vec<Vec<f64>> {
-        let Shape::SlowState { tau_s, drive, law, at_alpha_deg } = *shape else { return Vec::new() };
-        if at_alpha_deg.is_some_and(|onset| run.alpha_deg < onset - 1e-6) {
+        let Shape::SlowState { tau_s, drive, law, at_alphas } = *shape else { return Vec::new() };
+        if at_alphas.is_some_and(|set| !set.holds(run.alpha_deg, &context.alphas_deg)) {
             return vec![vec![0.0; run.len()]; 2];
         }
         let dt_s = 1.0 / run.sample_hz;
@@ -447,14 +452,65 @@ mod tests {
         let beta: Vec<f64> = run.phi_rad.iter().map(|phi| (alpha.sin() * phi.sin()).asin()).collect();
         let truth: Vec<f64> = first_order_lag(&beta, 0.8, 1.0 / run.sample_hz).iter().map(|b| 0.02 * b).collect();
         let best = best_vortex_form(&run, &truth, &context);
-        let Shape::SlowState { tau_s, drive, law, at_alpha_deg } = best.1 else { unreachable!() };
-        assert_eq!((drive, law, at_alpha_deg), (Drive::Sideslip, SlowLaw::State, None));
+        let Shape::SlowState { tau_s, drive, law, at_alphas } = best.1 else { unreachable!() };
+        assert_eq!((drive, law, at_alphas), (Drive::Sideslip, SlowLaw::State, None));
         // Within one step of the refined grid (a coarse cell either side in six steps).
         let (low, high) = VortexLag::search_range(&context);
         let fine_step = 2.0 * (high / low).ln() / (VortexLag::COARSE - 1) as f64 / 6.0;
         assert!((tau_s / 0.8).ln().abs() < fine_step, "tau {tau_s}");
         let params = VortexLag.params(&best.1, &best.2, &context, &[]);
         assert_eq!(params[1].0, "per_rad_sideslip");
+        assert!((params[1].1 - 0.02).abs() < 0.004, "{params:?}");
+    }
+
+    /// A sideslip state at the middle of three angles only, `0.02 LP_0.8s[beta]` there and
+    /// nothing at the others, is found with that one angle, and its gain is the gain where it
+    /// acts (a form at every angle would share it with the two runs without it).
+    #[test]
+    fn vortex_lag_profile_finds_a_state_at_one_inner_angle_only() {
+        let mut context = test_context();
+        context.alphas_deg = vec![4.0, 12.0, 20.0];
+        let runs: Vec<RunStreams> = context
+            .alphas_deg
+            .iter()
+            .map(|alpha_deg| RunStreams { alpha_deg: *alpha_deg, ..rolling_run(4000) })
+            .collect();
+        let truth: Vec<f64> = runs
+            .iter()
+            .flat_map(|run| {
+                let alpha = run.alpha_deg.to_radians();
+                let beta: Vec<f64> = run.phi_rad.iter().map(|phi| (alpha.sin() * phi.sin()).asin()).collect();
+                let acts = (run.alpha_deg - 12.0).abs() < 1e-9;
+                first_order_lag(&beta, 0.8, 1.0 / run.sample_hz)
+                    .into_iter()
+                    .map(move |b| if acts { 0.02 * b } else { 0.0 })
+            })
+            .collect();
+        let fit = |shape: &Shape| {
+            let per_run: Vec<Vec<Vec<f64>>> =
+                runs.iter().enumerate().map(|(idx, run)| VortexLag.columns(shape, run, idx, &context)).collect();
+            let columns: Vec<Vec<f64>> =
+                (0..per_run[0].len()).map(|c| per_run.iter().flat_map(|cols| cols[c].clone()).collect()).collect();
+            let coef = test_fit(&columns, &truth);
+            let sse: f64 = (0..truth.len())
+                .map(|i| (truth[i] - columns.iter().zip(&coef).map(|(c, b)| c[i] * b).sum::<f64>()).powi(2))
+                .sum();
+            (sse, coef)
+        };
+        let sideslip_states = VortexLag
+            .shapes(200.0, &context)
+            .into_iter()
+            .filter(|shape| matches!(shape, Shape::SlowState { drive: Drive::Sideslip, law: SlowLaw::State, .. }));
+        let (sse, best, coef) = sideslip_states
+            .map(|shape| {
+                let (sse, coef) = fit(&shape);
+                (sse, shape, coef)
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .expect("forms");
+        let Shape::SlowState { at_alphas, .. } = best else { unreachable!() };
+        assert_eq!(at_alphas.map(|set| set.angles_deg(&context.alphas_deg)), Some(vec![12.0]), "sse {sse}");
+        let params = VortexLag.params(&best, &coef, &context, &[]);
         assert!((params[1].1 - 0.02).abs() < 0.004, "{params:?}");
     }
 

@@ -209,8 +209,8 @@ pub enum Shape {
         drive: Drive,
         /// Whether the moment is the state or its deficit from the quasi-steady input.
         law: SlowLaw,
-        /// The angle of attack from which the state acts upward, deg (`None`: at every angle).
-        at_alpha_deg: Option<f64>,
+        /// The angles of attack at which the state acts (`None`: at every angle).
+        at_alphas: Option<AngleSet>,
     },
     /// A second-order structural mode.
     Mode {
@@ -429,6 +429,59 @@ pub enum FormValue {
     Choice(&'static str),
     /// A flag.
     Flag(bool),
+    /// Some of the recording's angles of attack.
+    Angles(AngleSet),
+}
+
+/// A set of the recording's angles of attack, as bits over [`Context::alphas_deg`] (ascending):
+/// where an effect that does not act at every angle acts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct AngleSet(u16);
+
+impl AngleSet {
+    /// Most angles a set can name (the bits of its mask).
+    pub const CAPACITY: usize = 16;
+
+    /// Every set of `n` angles but the empty and the full one, when there are at most
+    /// `every_set_up_to` angles; beyond that, every band of neighbouring angles but all of them
+    /// (`n (n + 1) / 2 - 1` sets instead of `2^n - 2`).
+    #[must_use]
+    pub fn proper_sets(n: usize, every_set_up_to: usize) -> Vec<Self> {
+        let n = n.min(Self::CAPACITY);
+        let full = ((1u32 << n) - 1) as u16;
+        let mut masks: Vec<u16> = if n <= every_set_up_to {
+            (1..full).collect()
+        } else {
+            (0..n)
+                .flat_map(|low| (low..n).map(move |high| ((1u32 << (high + 1)) - (1u32 << low)) as u16))
+                .filter(|mask| *mask != full)
+                .collect()
+        };
+        masks.sort_unstable();
+        masks.into_iter().map(Self).collect()
+    }
+
+    /// Whether the set holds the angle `alpha_deg` of `alphas_deg` (false for an angle not among
+    /// them).
+    #[must_use]
+    pub fn holds(self, alpha_deg: f64, alphas_deg: &[f64]) -> bool {
+        alphas_deg
+            .iter()
+            .position(|alpha| (alpha - alpha_deg).abs() < 1e-6)
+            .is_some_and(|slot| slot < Self::CAPACITY && self.0 & (1 << slot) != 0)
+    }
+
+    /// The angles of the set, deg, ascending.
+    #[must_use]
+    pub fn angles_deg(self, alphas_deg: &[f64]) -> Vec<f64> {
+        alphas_deg
+            .iter()
+            .take(Self::CAPACITY)
+            .enumerate()
+            .filter(|(slot, _)| self.0 & (1 << slot) != 0)
+            .map(|(_, a)| *a)
+            .collect()
+    }
 }
 
 impl fmt::Display for FormValue {
@@ -437,18 +490,21 @@ impl fmt::Display for FormValue {
             Self::Number(value) => write!(f, "{value:.4}"),
             Self::Choice(choice) => f.write_str(choice),
             Self::Flag(flag) => write!(f, "{flag}"),
+            Self::Angles(set) => write!(f, "angle set {:#06x}", set.0),
         }
     }
 }
 
 impl FormValue {
-    /// As JSON (a non-finite number is `null`).
+    /// As JSON (a non-finite number is `null`; a set of angles, its angles out of the
+    /// recording's `alphas_deg`).
     #[must_use]
-    pub fn to_json(self) -> serde_json::Value {
+    pub fn to_json(self, alphas_deg: &[f64]) -> serde_json::Value {
         match self {
             Self::Number(value) => serde_json::json!(value.is_finite().then_some(value)),
             Self::Choice(choice) => serde_json::json!(choice),
             Self::Flag(flag) => serde_json::json!(flag),
+            Self::Angles(set) => serde_json::json!(set.angles_deg(alphas_deg)),
         }
     }
 }
@@ -468,7 +524,7 @@ impl Form {
             Shape::Delay { smoothing_s, .. } => 1 + (smoothing_s > 0.0) as usize,
             Shape::DelayPerJet { .. } => 2,
             Shape::SecondOrderLag { .. } => 2,
-            Shape::SlowState { at_alpha_deg, .. } => 1 + at_alpha_deg.is_some() as usize,
+            Shape::SlowState { at_alphas, .. } => 1 + at_alphas.is_some() as usize,
             Shape::Tare { corner_hz, .. } => corner_hz.is_some() as usize,
             Shape::Interaction { lag_s, .. } => (lag_s > 0.0) as usize,
             // Every step's time is profiled, in every run.
@@ -536,14 +592,14 @@ impl Form {
             Shape::RateLimit { full_stroke_s, jets } => {
                 vec![("full_stroke_s", FormValue::Number(full_stroke_s)), ("jets", FormValue::Choice(jets.name()))]
             }
-            Shape::SlowState { tau_s, drive, law, at_alpha_deg } => {
+            Shape::SlowState { tau_s, drive, law, at_alphas } => {
                 let mut entries = vec![
                     ("tau_s", FormValue::Number(tau_s)),
                     ("drive", FormValue::Choice(drive.name())),
                     ("law", FormValue::Choice(law.name())),
                 ];
-                if let Some(alpha_deg) = at_alpha_deg {
-                    entries.push(("at_alpha_deg", FormValue::Number(alpha_deg)));
+                if let Some(set) = at_alphas {
+                    entries.push(("at_alpha_deg", FormValue::Angles(set)));
                 }
                 entries
             }
@@ -604,10 +660,17 @@ pub fn family_summary(candidate: Candidate, sample_hz: f64, context: &Context<'_
     let forms = forms(candidate, sample_hz, context);
     let mut numbers: BTreeMap<&'static str, Vec<f64>> = BTreeMap::new();
     let mut choices: BTreeMap<&'static str, Vec<String>> = BTreeMap::new();
+    let mut angle_sets: BTreeMap<&'static str, Vec<AngleSet>> = BTreeMap::new();
     for form in &forms {
         for (name, value) in form.entries().into_iter().filter(|(name, _)| *name != "per_alpha") {
             match value {
                 FormValue::Number(x) => numbers.entry(name).or_default().push(x),
+                FormValue::Angles(set) => {
+                    let seen = angle_sets.entry(name).or_default();
+                    if !seen.contains(&set) {
+                        seen.push(set);
+                    }
+                }
                 other => {
                     let text = other.to_string();
                     let seen = choices.entry(name).or_default();
@@ -630,6 +693,9 @@ pub fn family_summary(candidate: Candidate, sample_hz: f64, context: &Context<'_
         }
     }));
     parts.extend(choices.into_iter().map(|(name, values)| format!("{name}: {}", values.join(" or "))));
+    parts.extend(angle_sets.into_iter().map(|(name, sets)| {
+        format!("{name}: every angle or {} sets of them (of {:?})", sets.len(), context.alphas_deg)
+    }));
     if forms.first().is_some_and(|form| !candidate.refine(&form.shape, sample_hz, context).is_empty()) {
         parts.push("the leading forms refined on a finer grid of the same parameters".into());
     }
@@ -684,7 +750,7 @@ pub fn physical_params(
         .entries()
         .into_iter()
         .filter(|(name, _)| *name != "per_alpha")
-        .map(|(name, value)| (name.to_owned(), value.to_json()))
+        .map(|(name, value)| (name.to_owned(), value.to_json(&context.alphas_deg)))
         .collect();
     let number = |value: f64| serde_json::json!(value.is_finite().then_some(value));
     if form.per_alpha {
@@ -703,6 +769,23 @@ pub fn physical_params(
     }
     out
 }
+
+/// The shortest time constant of a slower flow state, s: twice the eGK's lag ("2 to 50 times
+/// slower than the eGK's lag", docs/spec/diagnosis.md), at least 50 ms. The eGK's lag is read
+/// at the recorded angle of attack where its vortex state carries the most moment (the largest
+/// `|K_v|`): there the fit identifies it. Where the vortices hardly move the moment, the fit
+/// keeps its prior lag, which says nothing of the rig's flow (a prior of 0.18 s at low angles,
+/// beside one of 36 ms fitted where the vortices act, would put the floor at 0.35 s).
+#[must_use]
+pub fn slow_tau_min_s(set: &CoefficientSet, alphas_deg: impl Iterator<Item = f64>) -> f64 {
+    alphas_deg
+        .map(|alpha_deg| estimator_core::egk::params_at(set, alpha_deg as f32))
+        .max_by(|a, b| a.vortex_gain.abs().total_cmp(&b.vortex_gain.abs()))
+        .map_or(SLOW_TAU_MIN_S, |params| (2.0 * f64::from(params.tau1_s)).max(SLOW_TAU_MIN_S))
+}
+
+/// The least of [`slow_tau_min_s`], s: no rig's second flow state is faster.
+const SLOW_TAU_MIN_S: f64 = 0.05;
 
 /// Names each coefficient in order (the gains of candidates whose columns are their parameters).
 fn gains(names: &[&str], beta: &[f64]) -> Params {
@@ -743,8 +826,9 @@ pub struct Context<'a> {
     pub cmu_ref: f64,
     /// Number of runs (per-run columns).
     pub n_runs: usize,
-    /// Shortest time constant of the vortex-lag candidate, s: twice the sim's own eGK lag, so
-    /// that the candidate is a slower state, not the eGK's (or a rate damping) again.
+    /// Shortest time constant of the vortex-lag candidate, s ([`slow_tau_min_s`]): twice the
+    /// sim's own eGK lag, so that the candidate is a slower state, not the eGK's (or a rate
+    /// damping) again.
     pub slow_tau_min_s: f64,
     /// Lowest natural frequency of the balance-resonance candidate, Hz ([`resonance_min_hz`]).
     pub resonance_min_hz: f64,

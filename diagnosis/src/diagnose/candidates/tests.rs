@@ -28,7 +28,7 @@ fn non_finite_parameters_are_null() {
     let form = Form { shape: Shape::Fixed, per_alpha: false };
     let params = physical_params(&RollDamping, &form, &[f64::NAN], &context, &[]);
     assert_eq!(params["clp"], serde_json::Value::Null);
-    assert_eq!(FormValue::Number(f64::INFINITY).to_json(), serde_json::Value::Null);
+    assert_eq!(FormValue::Number(f64::INFINITY).to_json(&[]), serde_json::Value::Null);
 }
 
 /// The log grid starts and ends at its bounds with a constant ratio.
@@ -75,7 +75,7 @@ fn lag_and_resonator_have_unit_dc_gain() {
 #[test]
 fn form_entries_name_every_parameter_and_count_the_profiled_ones() {
     let form = Form {
-        shape: Shape::SlowState { tau_s: 0.5, drive: Drive::RollRate, law: SlowLaw::State, at_alpha_deg: None },
+        shape: Shape::SlowState { tau_s: 0.5, drive: Drive::RollRate, law: SlowLaw::State, at_alphas: None },
         per_alpha: true,
     };
     let entries = form.entries();
@@ -115,4 +115,44 @@ fn every_candidate_has_a_distinct_name_and_a_separating_experiment() {
     for candidate in ALL {
         assert!(!candidate.separating_experiment().is_empty(), "{}", candidate.name());
     }
+}
+
+/// Three angles give every set but none and all (six); five give the bands of neighbouring
+/// angles (fourteen), and a set reports its own angles and holds no other.
+#[test]
+fn angle_sets_are_every_proper_set_of_few_angles_and_bands_of_many() {
+    let alphas_deg = [2.0, 10.0, 20.0];
+    let sets = AngleSet::proper_sets(alphas_deg.len(), 3);
+    assert_eq!(sets.len(), 6);
+    let as_angles: Vec<Vec<f64>> = sets.iter().map(|set| set.angles_deg(&alphas_deg)).collect();
+    assert!(as_angles.contains(&vec![10.0]), "the inner angle alone");
+    assert!(as_angles.contains(&vec![2.0, 20.0]), "both outer angles");
+    assert!(!as_angles.contains(&alphas_deg.to_vec()), "every angle is the form without a set");
+    let inner = sets[as_angles.iter().position(|a| *a == vec![10.0]).unwrap_or(0)];
+    assert!(inner.holds(10.0, &alphas_deg) && !inner.holds(2.0, &alphas_deg) && !inner.holds(12.0, &alphas_deg));
+    assert_eq!(FormValue::Angles(inner).to_json(&alphas_deg), serde_json::json!([10.0]));
+    let five = [0.0, 5.0, 10.0, 15.0, 20.0];
+    let bands = AngleSet::proper_sets(five.len(), 3);
+    assert_eq!(bands.len(), 14);
+    for band in &bands {
+        let slots: Vec<usize> = (0..five.len()).filter(|&slot| band.holds(five[slot], &five)).collect();
+        assert!(slots.windows(2).all(|pair| pair[1] == pair[0] + 1), "neighbours: {slots:?}");
+    }
+}
+
+/// The shortest slow state is twice the eGK lag where the vortex state carries the moment
+/// (the largest `|K_v|`), not the prior lag kept where it carries none.
+#[test]
+fn slow_state_floor_is_twice_the_egk_lag_where_the_vortices_act() {
+    let mut set = estimator_core::coeffs::BUILT_IN;
+    let n = usize::from(set.n_alpha);
+    assert!(n >= 2, "the built-in schedule has several angles");
+    for (idx, egk) in set.egk.iter_mut().enumerate().take(n) {
+        (egk.tau1_s, egk.vortex_gain) = if idx == n - 1 { (0.04, -0.2) } else { (0.18, 0.001) };
+    }
+    let alphas: Vec<f64> = set.alpha_schedule_deg[..n].iter().map(|a| f64::from(*a)).collect();
+    assert!((slow_tau_min_s(&set, alphas.iter().copied()) - 0.08).abs() < 1e-6);
+    // Without the angle where the vortices act, the prior is all there is.
+    assert!((slow_tau_min_s(&set, alphas[..1].iter().copied()) - 0.36).abs() < 1e-6);
+    assert_eq!(slow_tau_min_s(&set, std::iter::empty()), SLOW_TAU_MIN_S);
 }
