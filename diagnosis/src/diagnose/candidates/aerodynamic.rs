@@ -17,11 +17,11 @@ use crate::diagnose::streams::RunStreams;
 pub struct RollDamping;
 
 /// `vortex_lag`: a second, slower flow state, tau from 30 ms (no shorter than
-/// [`Context::slow_tau_min_s`], twice the eGK's lag where it acts) to 50 times the eGK's lag (at least 5 s),
-/// driven by a motion variable or by the vortex state itself, at every angle of attack or at
-/// some of them only (a breakdown that sets in above an angle). The time constants are profiled
-/// up to a factor `SLOW_SEARCH_MARGIN` beyond that range, and a best form at the longest is
-/// no slow state ([`BalanceCandidate::beyond_its_range`]).
+/// [`Context::slow_tau_min_s`], twice the eGK's lag where it acts) to 50 times the eGK's lag
+/// (at least 5 s), driven by a motion variable or by the vortex state itself, at every angle of
+/// attack or at some of them only (a breakdown that sets in above an angle). The time
+/// constants are profiled up to a factor `SLOW_SEARCH_MARGIN` beyond that range, and a best
+/// form at the longest is no slow state ([`BalanceCandidate::beyond_its_range`]).
 #[derive(Debug, Clone, Copy)]
 pub struct VortexLag;
 
@@ -145,27 +145,22 @@ impl BalanceCandidate for VortexLag {
     /// acts ([`AngleSet::proper_sets`]). The vortex state's own deficit is the first column
     /// already, so that drive acts as the state only.
     fn shapes(&self, _sample_hz: f64, context: &Context<'_>) -> Vec<Shape> {
-        let onsets: Vec<Option<AngleSet>> = std::iter::once(None)
+        let sets: Vec<Option<AngleSet>> = std::iter::once(None)
             .chain(AngleSet::proper_sets(context.alphas_deg.len(), Self::EVERY_SET_UP_TO).into_iter().map(Some))
             .collect();
         Self::taus(context, Self::COARSE)
             .into_iter()
             .flat_map(|tau_s| {
-                let onsets = onsets.clone();
+                let sets = sets.clone();
                 Drive::ALL.into_iter().flat_map(move |drive| {
-                    let onsets = onsets.clone();
+                    let sets = sets.clone();
                     let laws: &'static [SlowLaw] = if drive == Drive::VortexState {
                         &[SlowLaw::State]
                     } else {
                         &[SlowLaw::State, SlowLaw::Deficit]
                     };
                     laws.iter().copied().flat_map(move |law| {
-                        onsets.clone().into_iter().map(move |at_alphas| Shape::SlowState {
-                            tau_s,
-                            drive,
-                            law,
-                            at_alphas,
-                        })
+                        sets.clone().into_iter().map(move |at_alphas| Shape::SlowState { tau_s, drive, law, at_alphas })
                     })
                 })
             })
@@ -349,7 +344,7 @@ impl BalanceCandidate for Recalibration {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::diagnose::candidates::{test_context, test_fit};
+    use crate::diagnose::candidates::{test_context, test_fit, test_fit_runs, test_left};
     use crate::diagnose::streams::{RunStreams, synthetic_run};
 
     /// A rolling run at 20 deg: a sum of two sines in phi, its rate, and an eGK moment.
@@ -380,10 +375,7 @@ mod tests {
         let fit = |shape: Shape| {
             let columns = VortexLag.columns(&shape, run, 0, context);
             let coef = test_fit(&columns, truth);
-            let sse: f64 = (0..run.len())
-                .map(|i| (truth[i] - columns.iter().zip(&coef).map(|(c, b)| c[i] * b).sum::<f64>()).powi(2))
-                .sum();
-            (sse, shape, coef)
+            (test_left(&columns, &coef, truth), shape, coef)
         };
         let best = |fits: Vec<(f64, Shape, Vec<f64>)>| fits.into_iter().min_by(|a, b| a.0.total_cmp(&b.0));
         let coarse =
@@ -489,13 +481,7 @@ mod tests {
         let fit = |shape: &Shape| {
             let per_run: Vec<Vec<Vec<f64>>> =
                 runs.iter().enumerate().map(|(idx, run)| VortexLag.columns(shape, run, idx, &context)).collect();
-            let columns: Vec<Vec<f64>> =
-                (0..per_run[0].len()).map(|c| per_run.iter().flat_map(|cols| cols[c].clone()).collect()).collect();
-            let coef = test_fit(&columns, &truth);
-            let sse: f64 = (0..truth.len())
-                .map(|i| (truth[i] - columns.iter().zip(&coef).map(|(c, b)| c[i] * b).sum::<f64>()).powi(2))
-                .sum();
-            (sse, coef)
+            test_fit_runs(&per_run, &truth)
         };
         let sideslip_states = VortexLag
             .shapes(200.0, &context)

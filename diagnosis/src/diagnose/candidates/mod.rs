@@ -433,6 +433,11 @@ pub enum FormValue {
     Angles(AngleSet),
 }
 
+/// Where `alpha_deg` stands among the recording's angles `alphas_deg` (`None`: not among them).
+fn alpha_slot(alphas_deg: &[f64], alpha_deg: f64) -> Option<usize> {
+    alphas_deg.iter().position(|alpha| (alpha - alpha_deg).abs() < 1e-6)
+}
+
 /// A set of the recording's angles of attack, as bits over [`Context::alphas_deg`] (ascending):
 /// where an effect that does not act at every angle acts.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -465,10 +470,7 @@ impl AngleSet {
     /// them).
     #[must_use]
     pub fn holds(self, alpha_deg: f64, alphas_deg: &[f64]) -> bool {
-        alphas_deg
-            .iter()
-            .position(|alpha| (alpha - alpha_deg).abs() < 1e-6)
-            .is_some_and(|slot| slot < Self::CAPACITY && self.0 & (1 << slot) != 0)
+        alpha_slot(alphas_deg, alpha_deg).is_some_and(|slot| slot < Self::CAPACITY && self.0 & (1 << slot) != 0)
     }
 
     /// The angles of the set, deg, ascending.
@@ -725,7 +727,7 @@ pub fn columns(
         return base;
     }
     let n = run.len();
-    let group = context.alphas_deg.iter().position(|a| (a - run.alpha_deg).abs() < 1e-6);
+    let group = alpha_slot(&context.alphas_deg, run.alpha_deg);
     let mut out = Vec::with_capacity(base.len() * context.alphas_deg.len());
     for column in base {
         for slot in 0..context.alphas_deg.len() {
@@ -926,6 +928,23 @@ pub(crate) fn test_fit(columns: &[Vec<f64>], target: &[f64]) -> Vec<f64> {
     let rhs = nalgebra::DVector::from_fn(k, |i, _| columns[i].iter().zip(target).map(|(a, b)| a * b).sum());
     let scale = gram.diagonal().max().max(f64::MIN_POSITIVE);
     gram.svd(true, true).solve(&rhs, 1e-12 * scale).expect("both factors computed").iter().copied().collect()
+}
+
+/// What is left of `target` after `columns` times `beta`, as a sum of squares (for the
+/// candidates' unit tests).
+#[cfg(test)]
+pub(crate) fn test_left(columns: &[Vec<f64>], beta: &[f64], target: &[f64]) -> f64 {
+    (0..target.len()).map(|i| (target[i] - columns.iter().zip(beta).map(|(c, b)| c[i] * b).sum::<f64>()).powi(2)).sum()
+}
+
+/// [`test_fit`] of every run's columns, stacked run after run as `target` is: what is left (as
+/// [`test_left`]) and the coefficients.
+#[cfg(test)]
+pub(crate) fn test_fit_runs(per_run: &[Vec<Vec<f64>>], target: &[f64]) -> (f64, Vec<f64>) {
+    let columns: Vec<Vec<f64>> =
+        (0..per_run[0].len()).map(|c| per_run.iter().flat_map(|cols| cols[c].clone()).collect()).collect();
+    let beta = test_fit(&columns, target);
+    (test_left(&columns, &beta, target), beta)
 }
 
 #[cfg(test)]

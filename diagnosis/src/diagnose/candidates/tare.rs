@@ -164,7 +164,7 @@ impl BalanceCandidate for GravityTare {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::diagnose::candidates::{test_context, test_fit};
+    use crate::diagnose::candidates::{test_context, test_fit, test_fit_runs, test_left};
     use crate::diagnose::streams::synthetic_run;
 
     /// A balance that keeps `-I phi_ddot` gives back `I`: the column is the roll acceleration
@@ -222,9 +222,7 @@ mod tests {
             target.extend(run.phi_rad.iter().map(|phi| at_alpha(*phi, alpha_deg)));
         }
         let beta = test_fit(&columns, &target);
-        let left: f64 = (0..target.len())
-            .map(|i| (target[i] - columns.iter().zip(&beta).map(|(c, b)| c[i] * b).sum::<f64>()).powi(2))
-            .sum();
+        let left = test_left(&columns, &beta, &target);
         let total: f64 = target.iter().map(|v| v * v).sum();
         (context.alphas_deg, beta, left / total)
     }
@@ -284,13 +282,7 @@ mod tests {
         let fit = |shape: &Shape| {
             let per_run: Vec<Vec<Vec<f64>>> =
                 runs.iter().enumerate().map(|(k, run)| InertialTare.columns(shape, run, k, &context)).collect();
-            let columns: Vec<Vec<f64>> =
-                (0..per_run[0].len()).map(|c| per_run.iter().flat_map(|cols| cols[c].clone()).collect()).collect();
-            let beta = test_fit(&columns, &truth);
-            let sse: f64 = (0..truth.len())
-                .map(|i| (truth[i] - columns.iter().zip(&beta).map(|(c, b)| c[i] * b).sum::<f64>()).powi(2))
-                .sum();
-            (sse, beta)
+            test_fit_runs(&per_run, &truth)
         };
         let filtered = Shape::Tare { per_run: true, corner_hz: Some(20.0) };
         let (sse, beta) = fit(&filtered);
