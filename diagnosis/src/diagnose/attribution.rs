@@ -65,6 +65,8 @@ impl Profiled {
     ///   [`super::candidates::UNIT_GAIN_RANGE`]. A "delay" of 3 ms at eleven times the plant's
     ///   moment is the derivative of that moment (a mode the blowing rings), not a pneumatic
     ///   line.
+    /// - Its gains are the effect's ([`super::candidates::BalanceCandidate::admits`]): an
+    ///   inertia left in the balance has one sign on every mounting.
     ///
     /// An implausible fit is never named, but it stays in the ranking and in the sim's
     /// signature: what it takes of the sim's own error is still a floor.
@@ -74,6 +76,7 @@ impl Profiled {
         !self.beyond_its_range
             && self.limit_margin >= super::MIN_DELTA_BIC
             && (!self.candidate.unit_gain() || self.fit.beta.iter().all(|gain| (low..=high).contains(gain)))
+            && self.candidate.admits(&self.form.shape, &self.fit.beta)
     }
 
     /// Mean square explained per touched training sample.

@@ -151,10 +151,17 @@ impl BalanceAttribution {
     /// recording; on another recording it may take as much again ([`OWN_GAP_UNCERTAINTY`], as
     /// the sim's own gap and a sensor finding's floor are taken), so the excess must also reach
     /// the floor's uncertainty.
+    ///
+    /// The noise the effect is measured against is at least what the sim leaves beside it on
+    /// this recording ([`left_beside`]): on another excitation the sim's structural error can
+    /// exceed the signature's, and a candidate fitted there takes part of it whatever the
+    /// recording holds.
     pub(super) fn qualifies(&self, profiled: &Profiled, streams: &Streams, floor: &Signature) -> bool {
         let own = (OWN_GAP_UNCERTAINTY - 1.0) * floor.of(profiled.candidate.name()).max(0.0);
+        let beside = MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE * left_beside(profiled, streams);
         profiled.delta_bic >= MIN_DELTA_BIC
-            && self.excess(profiled, streams, floor) >= naming_threshold(streams, &profiled.fit.touched, floor).max(own)
+            && self.excess(profiled, streams, floor)
+                >= naming_threshold(streams, &profiled.fit.touched, floor).max(own).max(beside)
     }
 
     /// The strength of the leading named effect (0 without one).
@@ -173,6 +180,19 @@ impl BalanceAttribution {
 /// the fitted terms, as it does on the fit's own recording).
 pub(super) fn naming_threshold(streams: &Streams, touched: &[bool], floor: &Signature) -> f64 {
     MIN_EFFECT_TO_NOISE * MIN_EFFECT_TO_NOISE * noise_with_own_gap(streams, touched, floor)
+}
+
+/// What the sim leaves beside `profiled` on the selection part of the runs it touches, in noise
+/// variances: the white noise and whatever gap the effect, fitted on the training part, does
+/// not explain there. Where the effect is the gap, that is the noise and the sim's own gap on
+/// this recording, the naming threshold's noise on the fit's recording
+/// ([`noise_with_own_gap`]); where the sim's own error is larger on this excitation, it counts
+/// that, and an effect must explain [`MIN_EFFECT_TO_NOISE`] squared of it. On a clean recording
+/// of the second tunnel, where the sim's gap at 17 deg was 7.8 noise variances against 1.0 on the
+/// fit's recording, a weight was named at an excess of 0.67 noise variances, with 3.1 left
+/// beside it.
+pub(super) fn left_beside(profiled: &Profiled, streams: &Streams) -> f64 {
+    streams.to_noise(profiled.selection.mse_after)
 }
 
 /// The noise of the touched runs in units of the white noise variance: one plus the sim's own

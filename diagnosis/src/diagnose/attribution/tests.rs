@@ -338,6 +338,23 @@ fn a_candidate_qualifies_exactly_at_both_thresholds() {
     assert!(!stage.qualifies(&profiled(&InertialTare, MIN_RATIO, MIN_DELTA_BIC - 1e-9), &streams, &floor));
 }
 
+/// Where the sim leaves four noise variances beside a candidate on the selection part (its own
+/// error on this excitation larger than on the fit's recording), the candidate must explain a
+/// quarter of them: one noise variance qualifies, a hair less does not, whatever the signature.
+#[test]
+fn a_candidate_must_explain_a_share_of_what_the_sim_leaves_beside_it() {
+    let streams = streams(Vec::new(), 1.0);
+    let stage = balance(Vec::new(), Vec::new());
+    let beside = |removed: f64| {
+        let mut candidate = profiled(&InertialTare, removed, MIN_DELTA_BIC);
+        candidate.selection.mse_after = 4.0;
+        candidate
+    };
+    let floor = Signature::default();
+    assert!(stage.qualifies(&beside(4.0 * MIN_RATIO), &streams, &floor));
+    assert!(!stage.qualifies(&beside(4.0 * MIN_RATIO - 2f64.powi(-30)), &streams, &floor));
+}
+
 /// The selection part's slope: an effect that acts in one selection block in four, fitted
 /// where it is real, has slope 1 there; fitted on noise it has slope about 0. What is
 /// selected is the larger of the removal per selection sample where the effect acts and

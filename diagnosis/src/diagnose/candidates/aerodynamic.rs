@@ -148,19 +148,18 @@ impl BalanceCandidate for VortexLag {
         let sets: Vec<Option<AngleSet>> = std::iter::once(None)
             .chain(AngleSet::proper_sets(context.alphas_deg.len(), Self::EVERY_SET_UP_TO).into_iter().map(Some))
             .collect();
+        let sets = sets.as_slice();
         Self::taus(context, Self::COARSE)
             .into_iter()
             .flat_map(|tau_s| {
-                let sets = sets.clone();
                 Drive::ALL.into_iter().flat_map(move |drive| {
-                    let sets = sets.clone();
                     let laws: &'static [SlowLaw] = if drive == Drive::VortexState {
                         &[SlowLaw::State]
                     } else {
                         &[SlowLaw::State, SlowLaw::Deficit]
                     };
                     laws.iter().copied().flat_map(move |law| {
-                        sets.clone().into_iter().map(move |at_alphas| Shape::SlowState { tau_s, drive, law, at_alphas })
+                        sets.iter().map(move |&at_alphas| Shape::SlowState { tau_s, drive, law, at_alphas })
                     })
                 })
             })

@@ -83,6 +83,13 @@ pub trait BalanceCandidate: Sync + fmt::Debug {
         false
     }
 
+    /// Whether `beta`, the fitted gains of `shape`'s columns, are the effect the family stands
+    /// for and not only columns that happen to span part of the sim's error
+    /// ([`crate::diagnose::attribution::Profiled::plausible`]). True (the default): any gain is.
+    fn admits(&self, _shape: &Shape, _beta: &[f64]) -> bool {
+        true
+    }
+
     /// The forms `shape` tends to at the ends of its profiled time constant, each of which is
     /// another effect's: the family's best form is named only where it beats every one of them
     /// by decisive evidence ([`crate::diagnose::attribution::Profiled::plausible`]), for

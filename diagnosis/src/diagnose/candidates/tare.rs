@@ -53,6 +53,18 @@ impl BalanceCandidate for InertialTare {
             .collect()
     }
 
+    /// One inertia per run only where every run that rolls has an inertia of one sign: a wing
+    /// remounted between runs changes how much of its inertia the balance reads, not the sign
+    /// of its reaction to the roll acceleration (docs/spec/diagnosis.md, What each name covers:
+    /// a gain constant or changing per mounting). Gains of both signs are per-run columns
+    /// spanning the sim's own error at the roll acceleration's time scale: on a clean recording
+    /// of the second tunnel they fitted -6.5e-6 kg m^2 in the median, spread 7.2e-5.
+    fn admits(&self, shape: &Shape, beta: &[f64]) -> bool {
+        let Shape::Tare { per_run: true, .. } = *shape else { return true };
+        let rolling = || beta.iter().filter(|gain| **gain != 0.0);
+        rolling().all(|gain| *gain > 0.0) || rolling().all(|gain| *gain < 0.0)
+    }
+
     fn columns(&self, shape: &Shape, run: &RunStreams, run_idx: usize, context: &Context<'_>) -> Vec<Vec<f64>> {
         let Shape::Tare { per_run, corner_hz } = *shape else { return Vec::new() };
         let seen = match corner_hz {
@@ -255,6 +267,18 @@ mod tests {
     fn gravity_tare_pitched_form_does_not_span_a_moment_at_one_angle_only() {
         let (_, _, left) = pitched_fit(|phi, alpha_deg| if alpha_deg == 12.0 { phi.sin() } else { 0.0 });
         assert!(left > 0.3, "{left}");
+    }
+
+    /// Inertias of one sign per run are a remounted wing's tare, with or without runs that do
+    /// not roll (zero gain); inertias of both signs are no tare. One inertia for every run is
+    /// a tare of either sign.
+    #[test]
+    fn per_run_inertias_are_a_tare_only_with_one_sign() {
+        let per_run = Shape::Tare { per_run: true, corner_hz: Some(20.0) };
+        assert!(InertialTare.admits(&per_run, &[-1.0e-4, 0.0, -3.0e-4]));
+        assert!(InertialTare.admits(&per_run, &[2.0e-4, 0.5e-4]));
+        assert!(!InertialTare.admits(&per_run, &[2.0e-4, 0.0, -0.1e-4]));
+        assert!(InertialTare.admits(&Shape::Tare { per_run: false, corner_hz: None }, &[-2.0e-4]));
     }
 
     /// A tare seen through the balance's 20 Hz low-pass with a different inertia per run is
