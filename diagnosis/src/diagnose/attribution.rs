@@ -60,22 +60,19 @@ impl Profiled {
     ///   from its drive's static term or rate is not resolved as a state. A roll damping on this
     ///   project's tunnel was named a slow state of the roll rate at 21 s, and a mount's cubic
     ///   stiffness on the second tunnel a state of the roll angle at 13.6 s.
-    /// - An effect that keeps the sim's static gain
+    /// - Its gains are the effect's ([`super::candidates::BalanceCandidate::admits`]). An
+    ///   effect that keeps the sim's static gain
     ///   ([`super::candidates::BalanceCandidate::unit_gain`]) fits gains within
-    ///   [`super::candidates::UNIT_GAIN_RANGE`]. A "delay" of 3 ms at eleven times the plant's
+    ///   [`super::candidates::UNIT_GAIN_RANGE`]: a "delay" of 3 ms at eleven times the plant's
     ///   moment is the derivative of that moment (a mode the blowing rings), not a pneumatic
-    ///   line.
-    /// - Its gains are the effect's ([`super::candidates::BalanceCandidate::admits`]): an
-    ///   inertia left in the balance has one sign on every mounting.
+    ///   line. An inertia left in the balance has one sign on every mounting.
     ///
     /// An implausible fit is never named, but it stays in the ranking and in the sim's
     /// signature: what it takes of the sim's own error is still a floor.
     #[must_use]
     pub fn plausible(&self) -> bool {
-        let (low, high) = super::candidates::UNIT_GAIN_RANGE;
         !self.beyond_its_range
             && self.limit_margin >= super::MIN_DELTA_BIC
-            && (!self.candidate.unit_gain() || self.fit.beta.iter().all(|gain| (low..=high).contains(gain)))
             && self.candidate.admits(&self.form.shape, &self.fit.beta)
     }
 

@@ -85,9 +85,12 @@ pub trait BalanceCandidate: Sync + fmt::Debug {
 
     /// Whether `beta`, the fitted gains of `shape`'s columns, are the effect the family stands
     /// for and not only columns that happen to span part of the sim's error
-    /// ([`crate::diagnose::attribution::Profiled::plausible`]). True (the default): any gain is.
-    fn admits(&self, _shape: &Shape, _beta: &[f64]) -> bool {
-        true
+    /// ([`crate::diagnose::attribution::Profiled::plausible`]). By default: any gain, or gains
+    /// within [`UNIT_GAIN_RANGE`] for an effect that keeps the sim's static gain
+    /// ([`Self::unit_gain`]).
+    fn admits(&self, _shape: &Shape, beta: &[f64]) -> bool {
+        let (low, high) = UNIT_GAIN_RANGE;
+        !self.unit_gain() || beta.iter().all(|gain| (low..=high).contains(gain))
     }
 
     /// The forms `shape` tends to at the ends of its profiled time constant, each of which is

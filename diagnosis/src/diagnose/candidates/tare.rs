@@ -61,8 +61,7 @@ impl BalanceCandidate for InertialTare {
     /// of the second tunnel they fitted -6.5e-6 kg m^2 in the median, spread 7.2e-5.
     fn admits(&self, shape: &Shape, beta: &[f64]) -> bool {
         let Shape::Tare { per_run: true, .. } = *shape else { return true };
-        let rolling = || beta.iter().filter(|gain| **gain != 0.0);
-        rolling().all(|gain| *gain > 0.0) || rolling().all(|gain| *gain < 0.0)
+        rolling(beta).all(|gain| gain > 0.0) || rolling(beta).all(|gain| gain < 0.0)
     }
 
     fn columns(&self, shape: &Shape, run: &RunStreams, run_idx: usize, context: &Context<'_>) -> Vec<Vec<f64>> {
@@ -87,7 +86,7 @@ impl BalanceCandidate for InertialTare {
         let inertia: Vec<f64> = beta.iter().map(|b| -b * context.moment_scale_nm).collect();
         let mut out = match shape {
             Shape::Tare { per_run: true, .. } => {
-                let mut rolling: Vec<f64> = inertia.iter().copied().filter(|i| *i != 0.0).collect();
+                let mut rolling: Vec<f64> = rolling(&inertia).collect();
                 rolling.sort_by(f64::total_cmp);
                 let median = rolling.get(rolling.len() / 2).copied().unwrap_or(0.0);
                 let spread = rolling.last().copied().unwrap_or(0.0) - rolling.first().copied().unwrap_or(0.0);
@@ -100,6 +99,12 @@ impl BalanceCandidate for InertialTare {
         }
         out
     }
+}
+
+/// The per-run gains of the runs that roll: a run without roll acceleration has a zero column
+/// and a zero gain.
+fn rolling(gains: &[f64]) -> impl Iterator<Item = f64> + '_ {
+    gains.iter().copied().filter(|gain| *gain != 0.0)
 }
 
 /// The balance low-pass corners the inertial tare may be seen through, Hz: from 5 Hz (a balance
