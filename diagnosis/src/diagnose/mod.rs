@@ -210,6 +210,11 @@ pub fn diagnose(
         pressure_alignment_s: pressure_lag::Alignment::new(&streams.runs, |run| run.fit_samples().collect())
             .and_then(|alignment| alignment.reference()),
         pressure_alignment_scatter_s: pressure_lag::run_scatter_s(&streams.runs, pressure_lag::REFERENCE_RANGE_S),
+        pressure_alignment_by_kind: config
+            .signature
+            .is_none()
+            .then(|| pressure_lag::by_kind(&streams.runs))
+            .filter(|by_kind| !by_kind.is_empty()),
         // Only a signature needs it (a diagnosis without one is the sim on its own data).
         pressure_channel_lags: config.signature.is_none().then(|| lag_set::identify(&streams.runs)).flatten(),
         pressure_alone_mean: config

@@ -50,17 +50,86 @@ const LAG_SIGNIFICANCE_Z: f64 = 3.0;
 /// The sim's own alignment of the taps with the balance on the data it was fitted on (its
 /// signature), and the standard error of that estimate ([`run_scatter_s`]).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct Reference {
+pub struct Reference<'a> {
     /// The alignment, s.
     pub tau_s: f64,
     /// Its standard error, s (0 when unknown).
     pub scatter_s: f64,
+    /// The alignment per kind of run and angle of attack ([`by_kind`]), when the signature
+    /// holds it: a lag is then judged on the paired shifts ([`paired_shift`]).
+    pub by_kind: Option<&'a BTreeMap<String, KindAlignment>>,
 }
 
-impl From<f64> for Reference {
+impl From<f64> for Reference<'static> {
     fn from(tau_s: f64) -> Self {
-        Self { tau_s, scatter_s: 0.0 }
+        Self { tau_s, scatter_s: 0.0, by_kind: None }
     }
+}
+
+/// The alignment of the runs of one kind at one angle of attack, and its standard error.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct KindAlignment {
+    /// The time constant that best aligns the taps with the balance on those runs, s.
+    pub tau_s: f64,
+    /// Its standard error, s, from the curvature of the residual sum of squares
+    /// ([`Alignment::standard_error_s`]).
+    pub standard_error_s: f64,
+}
+
+/// Per kind of run and angle of attack (`roll@20`, [`super::signature::kind_alpha_key`]), the
+/// alignment of its runs within [`TAU_RANGE_S`] and its standard error; a kind whose alignment
+/// is at a range end, or whose residual has no minimum there, is left out.
+#[must_use]
+pub fn by_kind(runs: &[RunStreams]) -> BTreeMap<String, KindAlignment> {
+    let mut groups: BTreeMap<String, Vec<RunStreams>> = BTreeMap::new();
+    for run in runs {
+        groups.entry(super::signature::kind_alpha_key(run.kind.as_str(), run.alpha_deg)).or_default().push(run.clone());
+    }
+    groups
+        .into_iter()
+        .filter_map(|(key, group)| {
+            let alignment = Alignment::new(&group, |run| run.fit_samples().collect())?;
+            let tau_s = alignment.shared_in(TAU_RANGE_S)?;
+            let standard_error_s = alignment.standard_error_s(&group, tau_s)?;
+            Some((key, KindAlignment { tau_s, standard_error_s }))
+        })
+        .collect()
+}
+
+/// Fewest kinds of run a paired shift is judged on (a standard error and the spread of the
+/// pairs about their mean need three).
+const MIN_PAIRS: usize = 3;
+
+/// The shift of the recording's alignment from the sim's own, paired by kind of run and angle
+/// of attack, and its standard error, s: the inverse-variance weighted mean of the differences
+/// of the pairs, its standard error inflated by the Birge ratio where the pairs scatter beyond
+/// their own errors (Birge, Phys. Rev. 40, 1932, 207; Particle Data Group, Review of Particle
+/// Physics, Introduction, "unconstrained averaging"). `None` with fewer than [`MIN_PAIRS`].
+///
+/// Why paired: on a rig the sim's pressure map fits poorly, the alignment of each kind of run
+/// at each angle carries that map's own error (on the second tunnel's development rig, from -96
+/// to +31 ms across the rolling runs of the sim's own data), so the pooled alignment's scatter
+/// over the runs, 30 ms and more, hid lags of a hundred milliseconds. The map's error is the
+/// same for a kind of run at an angle on every recording of the rig, and the difference of the
+/// pair removes it.
+#[must_use]
+pub fn paired_shift(runs: &[RunStreams], own: &BTreeMap<String, KindAlignment>) -> Option<(f64, f64)> {
+    let pairs: Vec<(f64, f64)> = by_kind(runs)
+        .into_iter()
+        .filter_map(|(key, recorded)| {
+            let sim = own.get(&key)?;
+            let variance = recorded.standard_error_s.powi(2) + sim.standard_error_s.powi(2);
+            (variance > 0.0 && variance.is_finite()).then_some((recorded.tau_s - sim.tau_s, variance))
+        })
+        .collect();
+    if pairs.len() < MIN_PAIRS {
+        return None;
+    }
+    let weight_sum: f64 = pairs.iter().map(|(_, variance)| 1.0 / variance).sum();
+    let mean = pairs.iter().map(|(shift, variance)| shift / variance).sum::<f64>() / weight_sum;
+    let chi2: f64 = pairs.iter().map(|(shift, variance)| (shift - mean).powi(2) / variance).sum();
+    let birge = (chi2 / (pairs.len() - 1) as f64).sqrt().max(1.0);
+    Some((mean, birge / weight_sum.sqrt()))
 }
 
 /// The standard error of the alignment of every channel, s: the jackknife over the runs, each
@@ -332,6 +401,22 @@ impl Alignment {
         minimise_interior(|tau| self.ssr(&vec![tau; n]), range)
     }
 
+    /// The standard error of the alignment `tau_s` of `runs` (the runs this alignment was
+    /// accumulated on), s: from the curvature of the residual sum of squares there, `var =
+    /// 2 SSR / (n_eff SSR'')` (the profile likelihood of a least-squares fit, Seber & Wild,
+    /// Nonlinear Regression, 1989, ch. 5), with the effective samples of the residual. `None`
+    /// without a minimum there.
+    fn standard_error_s(&self, runs: &[RunStreams], tau_s: f64) -> Option<f64> {
+        const STEP_S: f64 = 5e-3;
+        let n = self.taps.len();
+        let at = |t: f64| self.ssr(&vec![t; n]);
+        let (centre, up, down) = (at(tau_s), at(tau_s + STEP_S), at(tau_s - STEP_S));
+        let curvature = (up + down - 2.0 * centre) / (STEP_S * STEP_S);
+        let n_eff = self.effective_samples(runs, &vec![tau_s; n]);
+        let variance = 2.0 * centre / (n_eff * curvature);
+        (curvature > 0.0 && n_eff >= 2.0 && variance.is_finite()).then(|| variance.sqrt())
+    }
+
     /// The sim's own alignment ([`REFERENCE_RANGE_S`]), for its signature; `None` at a range
     /// end.
     #[must_use]
@@ -421,7 +506,7 @@ fn minimise(mut f: impl FnMut(f64) -> f64, range: (f64, f64)) -> f64 {
 /// The time constant and the balance's weights on the taps are fitted on the training part
 /// only; the selection and held-out parts are judged with both fixed (`part_check`).
 #[must_use]
-pub fn finding(runs: &[RunStreams], reference: impl Into<Reference>) -> Option<SensorFinding> {
+pub fn finding<'a>(runs: &[RunStreams], reference: impl Into<Reference<'a>>) -> Option<SensorFinding> {
     let reference = reference.into();
     let reference_tau_s = reference.tau_s;
     let alignment = Alignment::new(runs, |run| run.fit_samples().collect())?;
@@ -438,11 +523,23 @@ pub fn finding(runs: &[RunStreams], reference: impl Into<Reference>) -> Option<S
     }
     let delta_bic = n_eff * (ssr_reference / alignment.ssr(&taus).max(f64::MIN_POSITIVE)).ln() - n_eff.ln();
     let lag_s = shared - reference_tau_s;
-    // Beyond the scatter of both alignments: the recording's from its runs (a run that cannot be
-    // aligned inside the range adds nothing), the sim's from its signature.
-    let scatter_s = run_scatter_s(runs, (TAU_RANGE_S.0.min(reference_tau_s - 0.1), TAU_RANGE_S.1)).unwrap_or(0.0);
-    if lag_s < LAG_SIGNIFICANCE_Z * scatter_s.hypot(reference.scatter_s) {
-        return None;
+    // Beyond the scatter of both alignments: paired by kind of run and angle of attack where the
+    // signature holds the sim's own per kind ([`paired_shift`]); otherwise the recording's
+    // scatter from its runs (a run that cannot be aligned inside the range adds nothing) and the
+    // sim's from its signature.
+    match reference.by_kind.and_then(|own| paired_shift(runs, own)) {
+        Some((shift_s, standard_error_s)) => {
+            if shift_s < MIN_CHANNEL_LAG_S.max(LAG_SIGNIFICANCE_Z * standard_error_s) {
+                return None;
+            }
+        }
+        None => {
+            let range = (TAU_RANGE_S.0.min(reference_tau_s - 0.1), TAU_RANGE_S.1);
+            let scatter_s = run_scatter_s(runs, range).unwrap_or(0.0);
+            if lag_s < LAG_SIGNIFICANCE_Z * scatter_s.hypot(reference.scatter_s) {
+                return None;
+            }
+        }
     }
     let (explained, _) = lag_deviation(runs, alignment.taps(), &|run| run.fit_samples().collect(), lag_s);
     let noise_var = {
@@ -508,9 +605,9 @@ const CHANNEL_LAG_Z: f64 = 3.0;
 /// Fitted on the training part only; the set's evidence is the innovations'
 /// ([`super::sensor`]).
 #[must_use]
-pub fn channel_set(
+pub fn channel_set<'a>(
     runs: &[RunStreams],
-    reference: impl Into<Reference>,
+    reference: impl Into<Reference<'a>>,
     lags: &super::lag_set::ChannelLags,
     own: Option<&super::lag_set::ChannelLags>,
     common_lag: bool,

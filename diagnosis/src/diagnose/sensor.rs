@@ -33,7 +33,10 @@ const ORDINARY_SIGMA: f64 = 3.0;
 
 /// Every sensor finding, strongest first ([`scan`]'s ranked findings).
 #[must_use]
-pub fn findings(runs: &[RunStreams], reference: impl Into<super::pressure_lag::Reference>) -> Vec<SensorFinding> {
+pub fn findings<'a>(
+    runs: &[RunStreams],
+    reference: impl Into<super::pressure_lag::Reference<'a>>,
+) -> Vec<SensorFinding> {
     scan(runs, reference, None).ranked
 }
 
@@ -54,9 +57,9 @@ pub struct Findings {
 /// Every sensor finding, and the lag of each channel alone. `reference` is the sim's own
 /// alignment of the taps with the balance and its scatter (`pressure_lag::finding`).
 #[must_use]
-pub fn scan(
+pub fn scan<'a>(
     runs: &[RunStreams],
-    reference: impl Into<super::pressure_lag::Reference>,
+    reference: impl Into<super::pressure_lag::Reference<'a>>,
     own_channel_lags: Option<&super::lag_set::ChannelLags>,
 ) -> Findings {
     let reference = reference.into();

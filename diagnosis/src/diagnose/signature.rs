@@ -36,6 +36,11 @@ pub struct Signature {
     /// own alignments (`pressure_lag::run_scatter_s`).
     #[serde(default)]
     pub pressure_alignment_scatter_s: Option<f64>,
+    /// Per kind of run and angle of attack (`roll@20`), the alignment of the taps with the
+    /// balance and its standard error on data the sim matches (`pressure_lag::by_kind`): a
+    /// recording's common lag is its shift from these, pair by pair.
+    #[serde(default)]
+    pub pressure_alignment_by_kind: Option<BTreeMap<String, super::pressure_lag::KindAlignment>>,
     /// How each pressure channel's apparent lag differs from the others' on data the sim
     /// matches, and the standard errors ([`super::lag_set::identify`]): the pressure model's own
     /// error per channel; a channel's lag counts beyond it.

@@ -352,6 +352,7 @@ impl SensorAttribution {
             pressure_lag::Reference {
                 tau_s: floor.pressure_alignment_s.unwrap_or(0.0),
                 scatter_s: floor.pressure_alignment_scatter_s.unwrap_or(0.0),
+                by_kind: floor.pressure_alignment_by_kind.as_ref(),
             },
             floor.pressure_channel_lags.as_ref(),
         );
