@@ -19,6 +19,7 @@
 //! search (coordinate descent over twelve time constants) and the comparison of hypotheses
 //! (all channels with one time constant, some channels, one channel) cheap.
 
+use std::borrow::Borrow;
 use std::collections::BTreeMap;
 
 use nalgebra::{DMatrix, DVector};
@@ -81,9 +82,9 @@ pub struct KindAlignment {
 /// is at a range end, or whose residual has no minimum there, is left out.
 #[must_use]
 pub fn by_kind(runs: &[RunStreams]) -> BTreeMap<String, KindAlignment> {
-    let mut groups: BTreeMap<String, Vec<RunStreams>> = BTreeMap::new();
+    let mut groups: BTreeMap<String, Vec<&RunStreams>> = BTreeMap::new();
     for run in runs {
-        groups.entry(super::signature::kind_alpha_key(run.kind.as_str(), run.alpha_deg)).or_default().push(run.clone());
+        groups.entry(super::signature::kind_alpha_key(run.kind.as_str(), run.alpha_deg)).or_default().push(run);
     }
     groups
         .into_iter()
@@ -195,14 +196,16 @@ const N_NUISANCE: usize = 1;
 
 impl Alignment {
     /// Accumulates the Gram matrices over the samples `part(run)` of every run, per angle of
-    /// attack; `None` without two usable channels or samples.
+    /// attack; `None` without two usable channels or samples. The runs are owned or borrowed
+    /// (a group of a recording's runs, [`by_kind`]).
     #[must_use]
-    pub fn new(runs: &[RunStreams], part: impl Fn(&RunStreams) -> Vec<usize>) -> Option<Self> {
-        let n_taps = runs.first()?.cp.len();
+    pub fn new<R: Borrow<RunStreams>>(runs: &[R], part: impl Fn(&RunStreams) -> Vec<usize>) -> Option<Self> {
+        let runs = || runs.iter().map(Borrow::borrow);
+        let n_taps = runs().next()?.cp.len();
         let taps: Vec<usize> = (0..n_taps)
             .filter(|&tap| {
                 let (mut finite, mut total) = (0usize, 0usize);
-                for run in runs {
+                for run in runs() {
                     for idx in part(run) {
                         total += 1;
                         finite += usize::from(run.cp[tap][idx].is_finite());
@@ -216,7 +219,7 @@ impl Alignment {
         }
         let width = 2 * taps.len() + N_NUISANCE;
         let mut by_alpha: BTreeMap<i64, Group> = BTreeMap::new();
-        for run in runs {
+        for run in runs() {
             let afc = run.cl_afc();
             let rows: Vec<usize> = part(run)
                 .into_iter()
@@ -350,15 +353,16 @@ impl Alignment {
     /// The residual of the balance on the de-lagged taps over `part(run)` of every run (NaN
     /// where a sample is unusable), each run centred: for the effective number of samples.
     #[must_use]
-    pub fn residuals(
+    pub fn residuals<R: Borrow<RunStreams>>(
         &self,
-        runs: &[RunStreams],
+        runs: &[R],
         part: impl Fn(&RunStreams) -> Vec<usize>,
         tau_s: &[f64],
     ) -> Vec<Vec<f64>> {
         let n_taps = self.taps.len();
         runs.iter()
-            .map(|run| {
+            .map(Borrow::borrow)
+            .map(|run: &RunStreams| {
                 let Some(group) = self.groups.iter().find(|g| g.alpha_key == alpha_key(run.alpha_deg)) else {
                     return Vec::new();
                 };
@@ -383,7 +387,7 @@ impl Alignment {
 
     /// Effective samples of the balance's residual on the fitted samples with the taps de-lagged
     /// by `taus_s`: their number over the residual's integrated autocorrelation time.
-    fn effective_samples(&self, runs: &[RunStreams], taus_s: &[f64]) -> f64 {
+    fn effective_samples<R: Borrow<RunStreams>>(&self, runs: &[R], taus_s: &[f64]) -> f64 {
         let residuals = self.residuals(runs, |run| run.fit_samples().collect(), taus_s);
         let segments: Vec<Segment<'_>> = residuals
             .iter()
@@ -406,7 +410,7 @@ impl Alignment {
     /// 2 SSR / (n_eff SSR'')` (the profile likelihood of a least-squares fit, Seber & Wild,
     /// Nonlinear Regression, 1989, ch. 5), with the effective samples of the residual. `None`
     /// without a minimum there.
-    fn standard_error_s(&self, runs: &[RunStreams], tau_s: f64) -> Option<f64> {
+    fn standard_error_s<R: Borrow<RunStreams>>(&self, runs: &[R], tau_s: f64) -> Option<f64> {
         const STEP_S: f64 = 5e-3;
         let n = self.taps.len();
         let at = |t: f64| self.ssr(&vec![t; n]);
