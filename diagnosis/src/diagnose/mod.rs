@@ -47,13 +47,13 @@ use finding::{ParamValue, SensorFinding};
 use model_fit::fit::pipeline::{FitConfig, fit_dataset};
 use model_fit::fit::split::Split;
 use result::{Confounding, Diagnosis, EffectResult, Gap, Unexplained, Verdict, Where, finite_or_null};
-use signature::kind_alpha_key;
 pub use signature::{
     DEFAULT_SIGNATURE_JSON, SIGNATURE_FILE, Signature, SignatureFileError, default_signature, signature,
     signature_beside,
 };
 use stages::*;
 pub use stages::{BalanceAttribution, GapSummary, LeftGap, ProbeResult, SensorAttribution, Streams};
+use streams::kind_alpha_key;
 
 /// Smallest effect the diagnosis names, as a ratio of its RMS to the stream's noise RMS: a
 /// smaller one is at the noise floor by definition. Its square is the explained mean square a

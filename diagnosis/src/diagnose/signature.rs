@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use estimator_core::CoefficientSet;
 use firmware_sim::dataset::Dataset;
 
-use super::streams::RunStreams;
+use super::streams::{RunStreams, kind_alpha_key};
 use super::{DiagnoseConfig, DiagnoseError, diagnose};
 use model_fit::fit::split::Split;
 
@@ -96,10 +96,6 @@ impl Signature {
             .copied()
             .unwrap_or(0.0)
     }
-}
-
-pub(super) fn kind_alpha_key(kind: &str, alpha_deg: f64) -> String {
-    format!("{kind}@{alpha_deg}")
 }
 
 /// Per kind of run and angle of attack, the mean over its runs of each channel's

@@ -52,6 +52,12 @@ const STEADY_MEAN_BLOCKS: usize = 10;
 /// freedom at 2.26, so 2 is a little lenient toward keeping a level).
 const STEADY_MEAN_Z: f64 = 2.0;
 
+/// The key of a kind of run at one angle of attack (`roll@20`), by which the signature keeps
+/// what the sim's own runs of that kind show and a recording's runs are paired with them.
+pub(super) fn kind_alpha_key(kind: &str, alpha_deg: f64) -> String {
+    format!("{kind}@{alpha_deg}")
+}
+
 /// Everything the diagnosis needs of one run.
 #[derive(Debug, Clone)]
 pub struct RunStreams {
