@@ -1,5 +1,6 @@
 //! Fitting and code generation: the committed default tables are the fit on the default
-//! synthetic campaign and are up to date; datasets that lack runs get clear errors.
+//! synthetic campaign and are up to date, as is the diagnosis signature beside them; datasets
+//! that lack runs get clear errors.
 
 use firmware_sim::campaign::{BlowingSides, KindName, Scenario};
 use firmware_sim::dataset::RunKind;
@@ -47,6 +48,28 @@ fn committed_default_model_is_the_fit_on_the_default_campaign() {
             assert!(value.is_some_and(f64::is_finite), "{row:?}");
         }
     }
+}
+
+/// The committed default signature (`models/default/diagnosis-signature.json`) is what `fit`
+/// writes beside the committed model: the default campaign diagnosed with the committed
+/// coefficients, byte for byte. A change to the diagnosis that moves the sim's own floors
+/// must regenerate it, or every recording diagnosed against the built-in model is judged
+/// against stale floors.
+#[test]
+#[ignore = "slow tier: ./ci.sh test runs it"]
+fn committed_default_signature_is_the_diagnosis_of_the_default_campaign() {
+    let (set, _) = model_fit::model::load(Some(&default_model())).expect("the committed default model loads");
+    let signature =
+        diagnosis::diagnose::signature(crate::fixture::default_campaign(), &set, FitConfig::default().split)
+            .expect("the default campaign is diagnosed");
+    let written = serde_json::to_vec_pretty(&signature).expect("a signature serialises");
+    let committed =
+        std::fs::read(default_model().join(diagnosis::diagnose::SIGNATURE_FILE)).expect("committed signature");
+    assert!(
+        written == committed,
+        "models/default/{} is stale: re-run `host-tools fit` on the default campaign",
+        diagnosis::diagnose::SIGNATURE_FILE
+    );
 }
 
 /// A recording of `kinds` at `alphas_deg`, `duration_s` per run, blowing from 1 s on.
