@@ -255,12 +255,20 @@ impl ProbeResult {
         // part: the least structure that counts is scaled by the noise as the naming threshold
         // counts it (white plus the sim's own gap).
         let noise_scale = noise_with_own_gap(streams, &vec![true; runs.len()], floor);
-        let remainder_structured = balance.named.first().is_some_and(|top| {
-            structure
-                >= (MIN_REMAINDER_TO_NOISE * noise_scale).max(MAX_REMAINDER_SHARE * balance.excess(top, streams, floor))
-        });
+        let remainder_structured = balance
+            .named
+            .first()
+            .is_some_and(|top| Self::structure_counts(structure, noise_scale, balance.excess(top, streams, floor)));
         let remainder_gap = LeftGap::of(streams, balance, floor);
         Self { base, structure, remainder_structured, remainder_gap }
+    }
+
+    /// Whether `structure` in the remainder, in noise variances beyond the signature, is another
+    /// effect beside the named ones and not what they may leave: at least
+    /// [`MIN_REMAINDER_TO_NOISE`] times `noise_scale` (the noise as the naming threshold counts
+    /// it) and [`MAX_REMAINDER_SHARE`] of the leading named effect's `excess`.
+    pub(super) fn structure_counts(structure: f64, noise_scale: f64, excess: f64) -> bool {
+        structure >= (MIN_REMAINDER_TO_NOISE * noise_scale).max(MAX_REMAINDER_SHARE * excess)
     }
 
     /// The named effects do not explain the gap: they leave at least the noise RMS and at

@@ -12,7 +12,8 @@ use crate::diagnose::result::Verdict;
 use crate::diagnose::streams::synthetic_run;
 use crate::diagnose::{
     BalanceAttribution, Decision, GapSummary, LeftGap, MAX_REMAINDER_GAP_SHARE, MAX_REMAINDER_GAP_TO_NOISE,
-    MIN_DELTA_BIC, MIN_EFFECT_TO_NOISE, MIN_SENSOR_GAP_SHARE, ProbeResult, SensorAttribution, Signature, Streams,
+    MAX_REMAINDER_SHARE, MIN_DELTA_BIC, MIN_EFFECT_TO_NOISE, MIN_REMAINDER_TO_NOISE, MIN_SENSOR_GAP_SHARE, ProbeResult,
+    SensorAttribution, Signature, Streams,
 };
 
 const HZ: f64 = 1000.0;
@@ -546,6 +547,23 @@ fn a_named_effect_that_leaves_the_noise_and_half_the_gap_is_unattributed() {
     // A gap of 336 noise variances that leaves 38: well beyond the noise, but a ninth of it.
     assert!(matches!(decide(&named, &leaves(336.0, 38.0), &no_sensor()), Decision::Balance));
     assert_eq!(decide(&named, &leaves(336.0, 84.0), &no_sensor()).verdict(), Verdict::Unattributed);
+}
+
+/// Structure the probe finds in the remainder overturns a named effect only where it would be
+/// an effect the contract names (an effect-to-noise ratio of one, in the noise the naming
+/// threshold counts) and a tenth of the named effect's excess; less is what the named effect
+/// and the sim's own scatter may leave.
+#[test]
+fn remainder_structure_below_an_effect_of_the_noise_leaves_the_name() {
+    let noise_scale = 2.0;
+    let least = MIN_REMAINDER_TO_NOISE * noise_scale;
+    let below = least * (1.0 - 1e-9);
+    assert!(!ProbeResult::structure_counts(below, noise_scale, 3.0));
+    assert!(ProbeResult::structure_counts(least, noise_scale, 3.0));
+    // Beside a strong effect a tenth of its excess is the bar.
+    let excess = 20.0 * least / MAX_REMAINDER_SHARE;
+    assert!(!ProbeResult::structure_counts(2.0 * least, noise_scale, excess));
+    assert!(ProbeResult::structure_counts(MAX_REMAINDER_SHARE * excess, noise_scale, excess));
 }
 
 /// A named sensor effect wins only when stronger than the named balance effect (strictly:
