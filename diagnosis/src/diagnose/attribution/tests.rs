@@ -549,18 +549,17 @@ fn a_named_effect_that_leaves_the_noise_and_half_the_gap_is_unattributed() {
     assert_eq!(decide(&named, &leaves(336.0, 84.0), &no_sensor()).verdict(), Verdict::Unattributed);
 }
 
-/// Structure the probe finds in the remainder overturns a named effect only where it would be
-/// an effect the contract names (an effect-to-noise ratio of one, in the noise the naming
-/// threshold counts) and a tenth of the named effect's excess; less is what the named effect
-/// and the sim's own scatter may leave.
+/// Structure the probe finds in the remainder overturns a named effect where it reaches both
+/// [`MIN_REMAINDER_TO_NOISE`] of the noise the naming threshold counts and a tenth of the named
+/// effect's excess; less is what the named effect and the probe's own scatter may leave.
 #[test]
-fn remainder_structure_below_an_effect_of_the_noise_leaves_the_name() {
+fn remainder_structure_counts_from_a_share_of_the_noise_and_of_the_named_effect() {
     let noise_scale = 2.0;
     let least = MIN_REMAINDER_TO_NOISE * noise_scale;
-    let below = least * (1.0 - 1e-9);
-    assert!(!ProbeResult::structure_counts(below, noise_scale, 3.0));
-    assert!(ProbeResult::structure_counts(least, noise_scale, 3.0));
-    // Beside a strong effect a tenth of its excess is the bar.
+    // Beside a weak effect the noise's share is the bar.
+    assert!(!ProbeResult::structure_counts(least * (1.0 - 1e-9), noise_scale, least));
+    assert!(ProbeResult::structure_counts(least, noise_scale, least));
+    // Beside a strong effect a tenth of its excess is.
     let excess = 20.0 * least / MAX_REMAINDER_SHARE;
     assert!(!ProbeResult::structure_counts(2.0 * least, noise_scale, excess));
     assert!(ProbeResult::structure_counts(MAX_REMAINDER_SHARE * excess, noise_scale, excess));
