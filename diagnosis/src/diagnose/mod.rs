@@ -53,7 +53,6 @@ pub use signature::{
 };
 use stages::*;
 pub use stages::{BalanceAttribution, GapSummary, LeftGap, ProbeResult, SensorAttribution, Streams};
-use streams::kind_alpha_key;
 
 /// Smallest effect the diagnosis names, as a ratio of its RMS to the stream's noise RMS: a
 /// smaller one is at the noise floor by definition. Its square is the explained mean square a

@@ -77,14 +77,14 @@ pub struct KindAlignment {
     pub standard_error_s: f64,
 }
 
-/// Per kind of run and angle of attack (`roll@20`, [`super::streams::kind_alpha_key`]), the
+/// Per kind of run and angle of attack (`roll@20`, [`RunStreams::kind_alpha_key`]), the
 /// alignment of its runs within [`TAU_RANGE_S`] and its standard error; a kind whose alignment
 /// is at a range end, or whose residual has no minimum there, is left out.
 #[must_use]
 pub fn by_kind(runs: &[RunStreams]) -> BTreeMap<String, KindAlignment> {
     let mut groups: BTreeMap<String, Vec<&RunStreams>> = BTreeMap::new();
     for run in runs {
-        groups.entry(super::streams::kind_alpha_key(run.kind.as_str(), run.alpha_deg)).or_default().push(run);
+        groups.entry(run.kind_alpha_key()).or_default().push(run);
     }
     groups
         .into_iter()

@@ -105,9 +105,7 @@ pub(super) fn pressure_alone_means(runs: &[RunStreams]) -> Option<BTreeMap<Strin
     let mut sums: BTreeMap<String, (Vec<f64>, Vec<usize>)> = BTreeMap::new();
     for run in runs {
         let means = run.steady_mean_alone();
-        let entry = sums
-            .entry(kind_alpha_key(run.kind.as_str(), run.alpha_deg))
-            .or_insert_with(|| (vec![0.0; means.len()], vec![0; means.len()]));
+        let entry = sums.entry(run.kind_alpha_key()).or_insert_with(|| (vec![0.0; means.len()], vec![0; means.len()]));
         for (tap, mean) in means.iter().enumerate().filter(|(_, m)| m.is_finite()) {
             entry.0[tap] += mean;
             entry.1[tap] += 1;

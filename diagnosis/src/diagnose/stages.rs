@@ -27,7 +27,7 @@ impl Streams {
         let mut runs = streams::build(dataset, set, &config.split);
         if let Some(means) = config.signature.as_ref().and_then(|s| s.pressure_alone_mean.as_ref()) {
             for run in &mut runs {
-                if let Some(own) = means.get(&kind_alpha_key(run.kind.as_str(), run.alpha_deg)) {
+                if let Some(own) = means.get(&run.kind_alpha_key()) {
                     run.remove_own_mean(own);
                 }
             }
@@ -499,7 +499,7 @@ impl GapSummary {
             .collect();
         let mut by_kind: BTreeMap<String, (f64, usize)> = BTreeMap::new();
         for (run, &(gap_to_noise, n)) in runs.iter().zip(&run_gaps) {
-            for key in [run.kind.as_str().to_owned(), kind_alpha_key(run.kind.as_str(), run.alpha_deg)] {
+            for key in [run.kind.as_str().to_owned(), run.kind_alpha_key()] {
                 let slot = by_kind.entry(key).or_default();
                 slot.0 += gap_to_noise * n as f64;
                 slot.1 += n;

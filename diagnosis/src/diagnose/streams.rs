@@ -140,6 +140,12 @@ pub enum PressureReplay {
 }
 
 impl RunStreams {
+    /// The key of this run's kind at its angle of attack (`roll@20`).
+    #[must_use]
+    pub fn kind_alpha_key(&self) -> String {
+        kind_alpha_key(self.kind.as_str(), self.alpha_deg)
+    }
+
     /// Takes `own_mean` (per channel, the sim's own mean of [`Self::innovation_alone`] on runs
     /// like this one) off [`Self::departure_alone`].
     pub fn remove_own_mean(&mut self, own_mean: &[f64]) {
