@@ -43,3 +43,6 @@ mod reliability;
 
 // The tree on its own: the contracts in docs/spec/, no path outside the repository.
 mod docs;
+
+// How the workspace builds: the Python extension reuses the test build's crates.
+mod workspace;

@@ -21,7 +21,9 @@ use ::diagnosis::validate::external::ExternalError;
 use evaluation::analysis::superposition::SuperpositionError;
 use evaluation::fault_study::StudyError;
 use firmware_sim::campaign::ScenarioError;
-use firmware_sim::dataset::{Dataset, DatasetError, Run};
+use firmware_sim::dataset::DatasetError;
+#[cfg(feature = "rigs")]
+use firmware_sim::dataset::{Dataset, Run};
 use firmware_sim::sil::SilError;
 use model_fit::codegen::CodegenError;
 use model_fit::fit::FitError;
@@ -164,7 +166,8 @@ fn holdout_split(holdout_fraction: f64) -> Result<model_fit::fit::split::Split, 
     Ok(model_fit::fit::split::Split::with_holdout(holdout_fraction))
 }
 
-/// The run of `dataset` whose file is `file`.
+/// The run of `dataset` whose file is `file` (the rigs' subcommands fly one).
+#[cfg(feature = "rigs")]
 fn run_named<'a>(dataset: &'a Dataset, file: &Path, data: &Path) -> Result<&'a Run, CommandError> {
     dataset
         .runs
