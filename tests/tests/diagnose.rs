@@ -184,6 +184,7 @@ fn blind_campaign_slice_runs_and_scores() {
         ratio_range: [2.0, 4.0],
         classes: vec!["none".into(), "inertial_tare".into(), "pressure_fault".into()],
         keep: None,
+        only: Vec::new(),
     };
     let records = run_campaign(&config, &|| {});
     assert_eq!(records.len(), 3);
@@ -215,6 +216,14 @@ fn blind_campaign_slice_runs_and_scores() {
     assert_eq!(summary.none_false_name_rate, Some(0.0));
     let right = records.iter().filter(|r| r.correct).count();
     assert!(right >= 2, "{records:#?}");
+    // One case drawn again alone is the campaign's case: its draw depends on the seed and its id.
+    let alone = run_campaign(&CampaignConfig { only: vec![2], ..config }, &|| {});
+    let (again, before) = (&alone[0], &records[2]);
+    assert_eq!(alone.len(), 1);
+    assert_eq!(
+        (again.id, &again.truth_sha256, &again.verdict, &again.named, &again.named_channels),
+        (before.id, &before.truth_sha256, &before.verdict, &before.named, &before.named_channels)
+    );
 }
 
 /// A recording at another sample rate than the sim's step is refused with the run named, not

@@ -78,6 +78,10 @@ pub struct CampaignConfig {
     /// Keep every case's recording and model here (`case-NNN/data`, `case-NNN/model.bin`,
     /// `case-NNN/diagnosis-signature.json`), to reproduce a case with `diagnose`.
     pub keep: Option<std::path::PathBuf>,
+    /// Only the cases with these ids, drawn as the whole campaign draws them (all when empty):
+    /// a case's draw depends on the master seed and its id alone, so one case of a campaign
+    /// is diagnosed again without the others.
+    pub only: Vec<usize>,
 }
 
 impl Default for CampaignConfig {
@@ -90,6 +94,7 @@ impl Default for CampaignConfig {
             ratio_range: [0.5, 4.0],
             classes: Vec::new(),
             keep: None,
+            only: Vec::new(),
         }
     }
 }
@@ -151,7 +156,8 @@ pub fn run_campaign(config: &CampaignConfig, progress: &(dyn Fn() + Sync)) -> Ve
     if classes.is_empty() {
         return Vec::new();
     }
-    let mut records: Vec<CaseRecord> = (0..config.cases)
+    let ids: Vec<usize> = (0..config.cases).filter(|id| config.only.is_empty() || config.only.contains(id)).collect();
+    let mut records: Vec<CaseRecord> = ids
         .into_par_iter()
         .filter_map(|id| {
             let record = run_case(config, id, classes[id % classes.len()], &models);

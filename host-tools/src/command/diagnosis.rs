@@ -49,9 +49,13 @@ pub struct ValidateArgs {
     /// Keep every case's recording, model and signature in this folder (to rerun `diagnose`).
     #[arg(long)]
     pub keep: Option<PathBuf>,
+    /// Only the cases with these ids (comma-separated, below `--cases`), each drawn as in the
+    /// whole campaign: to diagnose one case of a campaign again.
+    #[arg(long, value_delimiter = ',')]
+    pub only: Vec<usize>,
     /// Score a campaign written by another program instead (tools/foreign-tunnel/campaign.py):
     /// its clean recording is fitted, every case diagnosed, then its sealed truths read.
-    #[arg(long, conflicts_with_all = ["cases", "seed", "duration_s", "classes", "keep"])]
+    #[arg(long, conflicts_with_all = ["cases", "seed", "duration_s", "classes", "keep", "only"])]
     pub campaign: Option<PathBuf>,
 }
 
@@ -203,9 +207,17 @@ pub fn validate_diagnosis(args: &ValidateArgs, progress: &dyn Progress) -> Resul
         duration_s: args.duration_s,
         classes: args.classes.clone(),
         keep: args.keep.clone(),
+        only: args.only.clone(),
         ..CampaignConfig::default()
     };
-    progress.stage("diagnosing blind cases", Some(args.cases as u64));
+    if let Some(id) = args.only.iter().find(|id| **id >= args.cases) {
+        return Err(CommandError::Flag {
+            flag: "--only",
+            expected: format!("must name case ids below --cases ({}), found {id}", args.cases),
+        });
+    }
+    let n_cases = if args.only.is_empty() { args.cases } else { args.only.len() };
+    progress.stage("diagnosing blind cases", Some(n_cases as u64));
     let records = run_campaign(&config, &|| progress.step());
     let described = format!(
         "{} cases, master seed {}, runs of {} s at one angle of attack each (roll, actuation, roll+actuation); took {:.0} s.",
