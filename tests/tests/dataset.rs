@@ -8,8 +8,8 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 use firmware_sim::dataset::{
-    Channels, Dataset, DatasetError, FORMAT, N_TAPS, Run, RunKind, RunMeta, Tunnel, Wing, load_dataset, load_run,
-    write_dataset,
+    Channels, Dataset, DatasetError, FORMAT, N_TAPS, Run, RunKind, RunMeta, Tunnel, Wing, channels_from_columns,
+    check_dataset, load_dataset, load_run, write_dataset,
 };
 use tempfile::TempDir;
 
@@ -227,6 +227,56 @@ fn round_trip_is_bit_exact_with_nan_positions_and_extra_keys() {
     assert!(hidden_entries(tmp.path()).is_empty());
     // Loading through the manifest path gives the same dataset.
     assert_same_dataset(&load_dataset(&dir.join("manifest.toml")).unwrap(), &original);
+}
+
+/// Columns held in memory (a notebook's arrays) become the channels a run file of the same
+/// columns gives, and the dataset they make is checked as a folder is: an infinite sample, a
+/// short column, a missing column are refused naming the run's file, row and column.
+#[test]
+fn columns_in_memory_are_read_and_checked_as_a_run_file_is() {
+    let original = sample_dataset();
+    let run = &original.runs[0];
+    let c = &run.channels;
+    let mut columns: Vec<(String, Vec<f64>)> = vec![
+        ("t_s".into(), c.t_s.clone()),
+        ("phi_deg".into(), c.phi_deg.clone()),
+        ("cmu_port".into(), c.cmu_port.clone()),
+        ("cmu_stbd".into(), c.cmu_stbd.clone()),
+        ("temperature_c".into(), vec![20.0; c.len()]),
+    ];
+    columns.extend(c.cp.iter().enumerate().map(|(tap, values)| (format!("cp{:02}", tap + 1), values.clone())));
+    let (tunnel, wing) = (original.tunnel, original.wing);
+    let denominator = tunnel.dynamic_pressure_pa() * wing.area_m2 * wing.span_m;
+    let mut with_mx = columns.clone();
+    with_mx.push(("mx_nm".into(), c.cl.iter().map(|cl| cl * denominator).collect()));
+    columns.push(("cl".into(), c.cl.clone()));
+    columns.push(("phi_cmd_deg".into(), c.phi_cmd_deg.clone().unwrap()));
+    columns.push(("cmu_stbd_cmd".into(), c.cmu_stbd_cmd.clone().unwrap()));
+    let file = Path::new("<in memory>/runs/roll_a10.csv");
+    let read = channels_from_columns(file, columns.clone(), &tunnel, &wing).unwrap();
+    assert_same_channels(&read, c);
+    let converted = channels_from_columns(file, with_mx, &tunnel, &wing).unwrap();
+    for (got, want) in converted.cl.iter().zip(&c.cl) {
+        assert!((got.is_nan() && want.is_nan()) || (got - want).abs() <= 1e-12 * want.abs(), "{got} {want}");
+    }
+
+    let missing: Vec<(String, Vec<f64>)> = columns.iter().filter(|(name, _)| name != "cp05").cloned().collect();
+    let error = channels_from_columns(file, missing, &tunnel, &wing).unwrap_err();
+    assert!(matches!(error, DatasetError::MissingColumn { column: "cp05", .. }), "{error}");
+
+    let folder = Path::new("<in memory>");
+    assert!(check_dataset(folder, &original).is_ok());
+    let mut infinite = original.clone();
+    infinite.runs[0].channels.cp[6][9] = f64::INFINITY;
+    let error = check_dataset(folder, &infinite).unwrap_err();
+    assert!(
+        matches!(&error, DatasetError::BadNumber { row: 11, column: "cp07", file, .. } if file.ends_with("runs/roll_a10.csv")),
+        "{error}"
+    );
+    let mut short = original.clone();
+    short.runs[1].channels.cl.pop();
+    let error = check_dataset(folder, &short).unwrap_err();
+    assert!(matches!(error, DatasetError::ChannelLength { column: "cl", .. }), "{error}");
 }
 
 #[test]

@@ -12,8 +12,8 @@ mod write;
 
 pub use error::DatasetError;
 pub use manifest::Manifest;
-pub use read::{load_dataset, load_run, parse_manifest_bytes, parse_run};
-pub use write::write_dataset;
+pub use read::{channels_from_columns, load_dataset, load_run, parse_manifest_bytes, parse_run};
+pub use write::{check_dataset, write_dataset};
 
 use std::path::PathBuf;
 

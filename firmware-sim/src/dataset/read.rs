@@ -152,12 +152,46 @@ fn next_record(file: &Path, reader: &mut csv::Reader<&[u8]>, record: &mut ByteRe
     })
 }
 
+/// A run's channels from named columns held in memory (a notebook's arrays or DataFrame), taken
+/// as a run file's header and columns are: known names only (others are ignored, as the format
+/// says), each once, the required ones present, `cl` converted from `mx_nm` when only that is
+/// given, `cmu_stbd` zero when absent. `file` is the run's file, named in errors. Lengths, times
+/// and values are [`check_dataset`](super::check_dataset)'s.
+///
+/// # Errors
+/// [`DatasetError::DuplicateColumn`], [`DatasetError::MissingColumn`] or
+/// [`DatasetError::MissingRollMoment`], naming `file` and the column.
+pub fn channels_from_columns(
+    file: &Path,
+    columns: Vec<(String, Vec<f64>)>,
+    tunnel: &Tunnel,
+    wing: &Wing,
+) -> Result<Channels, DatasetError> {
+    let mut values: Vec<Vec<f64>> = vec![Vec::new(); N_COLUMNS];
+    let names: Vec<String> = columns.iter().map(|(name, _)| name.clone()).collect();
+    let slots = map_names(file, names.iter().map(String::as_str))?;
+    for (name, column) in columns {
+        if let Some(slot) = COLUMNS.iter().position(|known| *known == name.trim()) {
+            values[slot] = column;
+        }
+    }
+    Ok(into_channels(values, &slots, tunnel, wing))
+}
+
 /// For each known column, the index of its field in the header, checking the required ones.
 fn map_header(file: &Path, header: &ByteRecord) -> Result<[Option<usize>; N_COLUMNS], DatasetError> {
-    let mut slots = [None; N_COLUMNS];
     // The CSV reader has already dropped a UTF-8 byte order mark at the start of the file.
-    for (field, raw) in header.iter().enumerate() {
-        let name = String::from_utf8_lossy(raw);
+    let names: Vec<String> = header.iter().map(|raw| String::from_utf8_lossy(raw).into_owned()).collect();
+    map_names(file, names.iter().map(String::as_str))
+}
+
+/// For each known column, the index of its name in `names`, checking the required ones.
+fn map_names<'a>(
+    file: &Path,
+    names: impl Iterator<Item = &'a str>,
+) -> Result<[Option<usize>; N_COLUMNS], DatasetError> {
+    let mut slots = [None; N_COLUMNS];
+    for (field, name) in names.enumerate() {
         let Some(slot) = COLUMNS.iter().position(|column| *column == name.trim()) else {
             continue;
         };

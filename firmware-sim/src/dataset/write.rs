@@ -32,14 +32,34 @@ use super::{Channels, Dataset, DatasetError, Run};
 /// # Errors
 /// A [`DatasetError`] naming the file and the key or row that is invalid, or the I/O failure.
 pub fn write_dataset(dir: &Path, dataset: &Dataset) -> Result<(), DatasetError> {
+    let run_files = checked_run_files(dir, dataset)?;
+    let text = manifest_text(&dir.join(MANIFEST), dataset, &run_files)?;
+    crate::atomic::write_folder(dir, MANIFEST, |tmp| fill(tmp, dir, dataset, &run_files, &text))
+}
+
+/// Checks a dataset built in memory (from a notebook's arrays, say) as
+/// [`load_dataset`](super::load_dataset) checks a folder, so that it holds only what a folder
+/// of the format can: positive tunnel and wing values, finite angles, positive sample rates,
+/// channels as long as `t_s`, at least one sample per run, sample times on the uniform grid, no
+/// infinite sample, relative and distinct run files, no extra key named like a key of the
+/// format. `dir` is where the dataset would lie: errors name its manifest, or a run's file in
+/// it, with the key, row and column.
+///
+/// # Errors
+/// The first [`DatasetError`] in manifest order.
+pub fn check_dataset(dir: &Path, dataset: &Dataset) -> Result<(), DatasetError> {
+    checked_run_files(dir, dataset).map(drop)
+}
+
+/// The runs' files as the manifest names them, once the dataset is checked ([`check_dataset`]).
+fn checked_run_files(dir: &Path, dataset: &Dataset) -> Result<Vec<String>, DatasetError> {
     let manifest_file = dir.join(MANIFEST);
     validate(&manifest_file, dataset)?;
     let run_files = run_files(&manifest_file, dataset)?;
     for (run, run_file) in dataset.runs.iter().zip(&run_files) {
         check_run(&dir.join(run_file), run)?;
     }
-    let text = manifest_text(&manifest_file, dataset, &run_files)?;
-    crate::atomic::write_folder(dir, MANIFEST, |tmp| fill(tmp, dir, dataset, &run_files, &text))
+    Ok(run_files)
 }
 
 /// The runs' files as written in the manifest: relative, `/`-separated, distinct, not the
@@ -100,8 +120,8 @@ fn columns_of(channels: &Channels) -> Vec<(&'static str, &[f64])> {
     columns
 }
 
-/// Checks that a run would load again: equal channel lengths, samples, uniform times. `file`
-/// is the run's file in the destination.
+/// Checks that a run would load again: equal channel lengths, samples, uniform times, finite or
+/// missing values. `file` is the run's file in the destination.
 fn check_run(file: &Path, run: &Run) -> Result<(), DatasetError> {
     let channels = &run.channels;
     let len = channels.t_s.len();
@@ -115,7 +135,15 @@ fn check_run(file: &Path, run: &Run) -> Result<(), DatasetError> {
         return Err(DatasetError::EmptyRun { file: file.to_path_buf() });
     }
     let mut clock = Clock::new(run.meta.sample_hz);
-    (2..).zip(&channels.t_s).try_for_each(|(row, &t_s)| clock.check(file, row, t_s))
+    (2..).zip(&channels.t_s).try_for_each(|(row, &t_s)| clock.check(file, row, t_s))?;
+    // The format has no spelling for an infinity (a reader refuses one), so a run holding one
+    // would not load again.
+    for (column, values) in columns_of(channels) {
+        if let Some((row, value)) = (2_u64..).zip(values).find(|(_, value)| value.is_infinite()) {
+            return Err(DatasetError::BadNumber { file: file.to_path_buf(), row, column, text: value.to_string() });
+        }
+    }
+    Ok(())
 }
 
 /// Writes the manifest and all run files into the new folder `tmp`. `dir` is the destination,
