@@ -118,21 +118,11 @@ pub fn diagnose(args: &DiagnoseArgs, progress: &dyn Progress) -> Result<Diagnose
         None => None,
     };
     let (signature, source) = match own {
-        Some((found, path)) => (found, SignatureSource::Model(path)),
-        None => (diagnosis::diagnose::default_signature(), SignatureSource::BuiltIn),
+        Some((found, path)) => (Some(found), SignatureSource::Model(path)),
+        None => (None, SignatureSource::BuiltIn),
     };
-    let config = DiagnoseConfig { split, signature: Some(signature) };
-    progress.stage("diagnosing", None);
-    let (diagnosis, evidence) = diagnosis::diagnose::diagnose(
-        &dataset,
-        model.as_ref().map(|(set, name)| (set, name.clone())),
-        &config,
-        &|stage| {
-            progress.stage(&format!("diagnosing: {stage}"), None);
-        },
-    )?;
-    progress.stage("diagnosing: writing the report", None);
-    let report = diagnosis::diagnose::report::build(&diagnosis, &evidence, &args.real.display().to_string());
+    let sim = model.as_ref().map(|(set, name)| (set, name.clone()));
+    let (diagnosis, report) = diagnose_loaded(&dataset, &args.real, sim, signature, split, progress)?;
     let json = serde_json::to_value(&diagnosis).map_err(|error| CommandError::write(&args.report)(error.into()))?;
     reports::write_report(&args.report, &report, "diagnosis.json", &json).map_err(CommandError::write(&args.report))?;
     Ok(DiagnoseSummary {
@@ -141,6 +131,29 @@ pub fn diagnose(args: &DiagnoseArgs, progress: &dyn Progress) -> Result<Diagnose
         report: args.report.join("report.html"),
         elapsed_s: started.elapsed().as_secs_f64(),
     })
+}
+
+/// The diagnosis of a loaded dataset that came from `origin` (named in the report), as
+/// `diagnose` makes it, and its report; nothing is written. `sim` is the model and its name
+/// (nominal models fitted on the data's training part when `None`); `signature` its diagnosis
+/// signature (the built-in model's when `None`).
+pub fn diagnose_loaded(
+    dataset: &firmware_sim::dataset::Dataset,
+    origin: &Path,
+    sim: Option<(&estimator_core::coeffs::CoefficientSet, String)>,
+    signature: Option<diagnosis::diagnose::Signature>,
+    split: model_fit::fit::split::Split,
+    progress: &dyn Progress,
+) -> Result<(Diagnosis, reports::Report), CommandError> {
+    let signature = signature.unwrap_or_else(diagnosis::diagnose::default_signature);
+    let config = DiagnoseConfig { split, signature: Some(signature) };
+    progress.stage("diagnosing", None);
+    let (diagnosis, evidence) = diagnosis::diagnose::diagnose(dataset, sim, &config, &|stage| {
+        progress.stage(&format!("diagnosing: {stage}"), None);
+    })?;
+    progress.stage("diagnosing: writing the report", None);
+    let report = diagnosis::diagnose::report::build(&diagnosis, &evidence, &origin.display().to_string());
+    Ok((diagnosis, report))
 }
 
 /// What `validate-diagnosis` scored and wrote.

@@ -143,7 +143,7 @@ pub enum CommandError {
 
 impl CommandError {
     /// A write error for `path`.
-    fn write(path: &Path) -> impl FnOnce(std::io::Error) -> Self + '_ {
+    pub fn write(path: &Path) -> impl FnOnce(std::io::Error) -> Self + '_ {
         move |source| Self::Write { path: path.to_path_buf(), source }
     }
 
@@ -156,7 +156,7 @@ impl CommandError {
 }
 
 /// Checks a `--holdout-fraction`: in `[0, 1)`.
-fn holdout_split(holdout_fraction: f64) -> Result<model_fit::fit::split::Split, CommandError> {
+pub fn holdout_split(holdout_fraction: f64) -> Result<model_fit::fit::split::Split, CommandError> {
     if !(0.0..1.0).contains(&holdout_fraction) {
         return Err(CommandError::Flag {
             flag: "--holdout-fraction",

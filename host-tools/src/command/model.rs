@@ -126,19 +126,46 @@ pub fn fit(args: &FitArgs, progress: &dyn Progress) -> Result<FitSummary, Comman
     let split = holdout_split(args.holdout_fraction)?;
     let started = Instant::now();
     let dataset = firmware_sim::dataset::load_dataset(&args.data)?;
-    let config = FitConfig { split, ..Default::default() };
-    let failed = |source| CommandError::Fit { data: args.data.clone(), source };
-    let FitOutcome { set, report } =
-        fit_dataset(&dataset, &config, &|stage| progress.stage(&format!("fitting: {stage}"), None)).map_err(failed)?;
-    progress.stage("fitting: the model's diagnosis signature on its held-out data", None);
-    let signature = diagnosis::diagnose::signature(&dataset, &set, config.split)?;
-    progress.stage("writing the model folder", None);
     let described = format!("{} (seed {})", args.data.display(), args.seed);
-    let outcome = FitOutcome { set, report };
-    let signature = (diagnosis::diagnose::SIGNATURE_FILE, serde_json::to_vec_pretty(&signature).unwrap_or_default());
-    model_fit::fit::card::write_model_folder(&args.out, &outcome, &described, &[signature])?;
-    let FitOutcome { set, report } = outcome;
+    let FittedModel { set, report, files } = fit_loaded(&dataset, &args.data, &described, split, progress)?;
+    progress.stage("writing the model folder", None);
+    model_fit::fit::card::write_model_files(&args.out, &files)?;
     Ok(FitSummary { out: args.out.clone(), set, report, elapsed_s: started.elapsed().as_secs_f64() })
+}
+
+/// A fitted model held in memory: the set, the fit's numbers, and the files of its model
+/// folder (name, bytes; [`model_fit::fit::card::model_files`]), written or not.
+#[derive(Debug, Clone)]
+pub struct FittedModel {
+    /// The fitted coefficient set.
+    pub set: CoefficientSet,
+    /// The fit's report.
+    pub report: FitReport,
+    /// The model folder's files: blob, `model.json`, card, diagnosis signature, plots.
+    pub files: Vec<(String, Vec<u8>)>,
+}
+
+/// The fit of a loaded dataset, as `fit` makes it, without writing anything: `origin` is where
+/// the data came from (named in errors), `described` the card's account of it.
+pub fn fit_loaded(
+    dataset: &firmware_sim::dataset::Dataset,
+    origin: &std::path::Path,
+    described: &str,
+    split: model_fit::fit::split::Split,
+    progress: &dyn Progress,
+) -> Result<FittedModel, CommandError> {
+    let config = FitConfig { split, ..Default::default() };
+    let failed = |source| CommandError::Fit { data: origin.to_path_buf(), source };
+    let outcome =
+        fit_dataset(dataset, &config, &|stage| progress.stage(&format!("fitting: {stage}"), None)).map_err(failed)?;
+    progress.stage("fitting: the model's diagnosis signature on its held-out data", None);
+    let signature = diagnosis::diagnose::signature(dataset, &outcome.set, config.split)?;
+    let signature = (diagnosis::diagnose::SIGNATURE_FILE, serde_json::to_vec_pretty(&signature).unwrap_or_default());
+    let files = model_fit::fit::card::model_files(&outcome, described, &[signature]).map_err(|error| {
+        model_fit::model::ModelError::ToBlob { path: origin.join(model_fit::model::BLOB_FILE), error }
+    })?;
+    let FitOutcome { set, report } = outcome;
+    Ok(FittedModel { set, report, files })
 }
 
 /// What `codegen` did.
@@ -242,16 +269,52 @@ pub fn evaluate(args: &EvaluateArgs, progress: &dyn Progress) -> Result<Evaluate
     let started = Instant::now();
     let dataset = firmware_sim::dataset::load_dataset(&args.data)?;
     let (set, source) = model_fit::model::load(args.model.as_deref())?;
-    let config = EvaluationConfig { split, seed: args.seed, ..EvaluationConfig::default() };
+    let evaluated = evaluate_loaded(&dataset, &args.data, &set, &source.to_string(), args.seed, split, progress)?;
+    reports::write_report(&args.report, &evaluated.report, "evaluation.json", &evaluated.json)
+        .map_err(CommandError::write(&args.report))?;
+    Ok(EvaluateSummary {
+        evaluation: evaluated.evaluation,
+        report: args.report.join("report.html"),
+        warnings: evaluated.warnings,
+        elapsed_s: started.elapsed().as_secs_f64(),
+    })
+}
+
+/// The evaluation of a loaded dataset, as `evaluate` makes it, before anything is written.
+#[derive(Debug, Clone)]
+pub struct Evaluated {
+    /// The paper's tables on the held-out part.
+    pub evaluation: Evaluation,
+    /// The report (tables and figures).
+    pub report: reports::Report,
+    /// `evaluation.json`.
+    pub json: serde_json::Value,
+    /// What the report leaves out, and why.
+    pub warnings: Vec<String>,
+}
+
+/// The paper's analysis of `set` (from `source`) on the held-out part of a loaded dataset that
+/// came from `origin` (named in the report and in errors), with the noise of the robustness
+/// test seeded by `seed`; nothing is written.
+pub fn evaluate_loaded(
+    dataset: &firmware_sim::dataset::Dataset,
+    origin: &std::path::Path,
+    set: &CoefficientSet,
+    source: &str,
+    seed: u64,
+    split: model_fit::fit::split::Split,
+    progress: &dyn Progress,
+) -> Result<Evaluated, CommandError> {
+    let config = EvaluationConfig { split, seed, ..EvaluationConfig::default() };
     progress.stage("evaluating: replay, tables, noise sweep", None);
-    let failed = |source| CommandError::Evaluate { data: args.data.clone(), source };
-    let (evaluation, replayed) = evaluate_held_out(&dataset, &set, &config).map_err(failed)?;
+    let failed = |source| CommandError::Evaluate { data: origin.to_path_buf(), source };
+    let (evaluation, replayed) = evaluate_held_out(dataset, set, &config).map_err(failed)?;
     progress.stage("evaluating: figures", None);
     let sigma = config.figure_noise;
-    let noisy = with_balance_noise(&dataset, sigma, args.seed);
+    let noisy = with_balance_noise(dataset, sigma, seed);
     let fit_config = FitConfig { split, ..Default::default() };
     let mut warnings = Vec::new();
-    let noisy_figure = match refit_coupling(&noisy, &set, &fit_config) {
+    let noisy_figure = match refit_coupling(&noisy, set, &fit_config) {
         Ok(refitted) => Some(Replayed::new(&noisy, &refitted)),
         Err(error) => {
             warnings.push(format!(
@@ -260,18 +323,11 @@ pub fn evaluate(args: &EvaluateArgs, progress: &dyn Progress) -> Result<Evaluate
             None
         }
     };
-    let figures = figures(&dataset, &replayed, &split, &evaluation, noisy_figure.as_ref().map(|r| (&noisy, r, sigma)));
-    let described = format!("Data `{}`, model {source}.", args.data.display());
+    let figures = figures(dataset, &replayed, &split, &evaluation, noisy_figure.as_ref().map(|r| (&noisy, r, sigma)));
+    let described = format!("Data `{}`, model {source}.", origin.display());
     let report = evaluation_report(&evaluation, figures, &described);
-    let json = serde_json::json!({ "data": args.data.display().to_string(), "model": source.to_string(), "evaluation": evaluation });
-    reports::write_report(&args.report, &report, "evaluation.json", &json)
-        .map_err(CommandError::write(&args.report))?;
-    Ok(EvaluateSummary {
-        evaluation,
-        report: args.report.join("report.html"),
-        warnings,
-        elapsed_s: started.elapsed().as_secs_f64(),
-    })
+    let json = serde_json::json!({ "data": origin.display().to_string(), "model": source, "evaluation": evaluation });
+    Ok(Evaluated { evaluation, report, json, warnings })
 }
 
 impl fmt::Display for EvaluateSummary {

@@ -34,27 +34,45 @@ pub fn write_model_folder(
     dataset: &str,
     companions: &[(&str, Vec<u8>)],
 ) -> Result<(), ModelError> {
-    let blob =
-        crate::model::encode(&outcome.set).map_err(|error| ModelError::ToBlob { path: dir.join(BLOB_FILE), error })?;
-    let json = ModelJson { dataset, report: &outcome.report, coefficients: &outcome.set };
-    let json = serde_json::to_string_pretty(&json).unwrap_or_else(|error| format!("{{\"error\": \"{error}\"}}"));
-    let card = model_card(&outcome.set, &outcome.report, dataset);
-    let plots = sweep_plots(&outcome.report);
+    let files = model_files(outcome, dataset, companions)
+        .map_err(|error| ModelError::ToBlob { path: dir.join(BLOB_FILE), error })?;
+    write_model_files(dir, &files)
+}
+
+/// Writes a model folder's `files` (name, bytes) into `dir`, completely or not at all (an
+/// existing model folder is replaced only once the new one is whole).
+pub fn write_model_files(dir: &Path, files: &[(String, Vec<u8>)]) -> Result<(), ModelError> {
     firmware_sim::atomic::write_folder(dir, BLOB_FILE, |tmp| {
-        let write = |name: &str, bytes: &[u8]| {
-            std::fs::write(tmp.join(name), bytes).map_err(|source| ModelError::Io { path: dir.join(name), source })
-        };
-        write(BLOB_FILE, &blob)?;
-        write("model.json", json.as_bytes())?;
-        write("model.md", card.as_bytes())?;
-        for (name, bytes) in companions {
-            write(name, bytes)?;
-        }
-        for (name, plot) in &plots {
-            write(name, plot.as_bytes())?;
+        for (name, bytes) in files {
+            std::fs::write(tmp.join(name), bytes).map_err(|source| ModelError::Io { path: dir.join(name), source })?;
         }
         Ok(())
     })
+}
+
+/// The files of a model folder (name, bytes), in the order they are written: the blob,
+/// `model.json`, the card, the `companions`, the sweep plots. What [`write_model_folder`]
+/// writes, held in memory by a caller that may never write it (a notebook's fit).
+///
+/// # Errors
+/// The blob's encoding error.
+pub fn model_files(
+    outcome: &FitOutcome,
+    dataset: &str,
+    companions: &[(&str, Vec<u8>)],
+) -> Result<Vec<(String, Vec<u8>)>, crate::model::ToBlobError> {
+    let blob = crate::model::encode(&outcome.set)?;
+    let json = ModelJson { dataset, report: &outcome.report, coefficients: &outcome.set };
+    let json = serde_json::to_string_pretty(&json).unwrap_or_else(|error| format!("{{\"error\": \"{error}\"}}"));
+    let card = model_card(&outcome.set, &outcome.report, dataset);
+    let mut files = vec![
+        (BLOB_FILE.to_owned(), blob),
+        ("model.json".to_owned(), json.into_bytes()),
+        ("model.md".to_owned(), card.into_bytes()),
+    ];
+    files.extend(companions.iter().map(|(name, bytes)| ((*name).to_owned(), bytes.clone())));
+    files.extend(sweep_plots(&outcome.report).into_iter().map(|(name, plot)| (name, plot.into_bytes())));
+    Ok(files)
 }
 
 /// The sweep plots: held-out error against the number of terms, selected model marked.
