@@ -24,7 +24,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 use serde::Deserialize;
 
-use super::{CaseRecord, score};
+use super::{CaseRecord, Diagnosed, Sealed};
 use crate::diagnose::{DiagnoseConfig, diagnose};
 use model_fit::fit::pipeline::{FitConfig, fit_dataset};
 
@@ -66,7 +66,7 @@ pub enum ExternalError {
     },
 }
 
-#[derive(Debug, Deserialize)]
+#[derive(Debug, Clone, Deserialize)]
 struct Index {
     format: String,
     seed: u64,
@@ -74,7 +74,7 @@ struct Index {
     cases: Vec<IndexCase>,
 }
 
-#[derive(Debug, Deserialize)]
+#[derive(Debug, Clone, Deserialize)]
 struct IndexCase {
     id: usize,
     data: String,
@@ -115,123 +115,153 @@ pub struct Outcome {
 /// A malformed index, a dataset that does not load, a clean recording that does not fit, or a
 /// truth file that is missing, malformed or does not match its recorded hash.
 pub fn run(dir: &Path, progress: &(dyn Fn() + Sync)) -> Result<Outcome, ExternalError> {
-    let index_path = dir.join("campaign.json");
-    let index_error = |message: String| ExternalError::Index { path: index_path.clone(), message };
-    let text = std::fs::read_to_string(&index_path).map_err(|e| index_error(e.to_string()))?;
-    let index: Index = serde_json::from_str(&text).map_err(|e| index_error(e.to_string()))?;
-    if index.format != FORMAT {
-        return Err(index_error(format!("format is \"{}\", expected \"{FORMAT}\"", index.format)));
-    }
-
+    let campaign = Campaign::open(dir)?;
     let clock = Instant::now();
-    let clean_path = dir.join(&index.clean);
-    let clean = firmware_sim::dataset::load_dataset(&clean_path)?;
-    let config = FitConfig::default();
-    let set = fit_dataset(&clean, &config, &|_| {})
-        .map_err(|source| ExternalError::Fit { path: clean_path.clone(), source })?
-        .set;
-    let signature = crate::diagnose::signature(&clean, &set, config.split)?;
+    let (set, signature) = campaign.fit_clean()?;
     let fit_s = clock.elapsed().as_secs_f64();
 
     // Every case is diagnosed before any truth is read.
-    let diagnosed: Vec<Result<Diagnosed, ExternalError>> = index
-        .cases
+    let diagnosed: Vec<Result<Diagnosed, ExternalError>> = campaign
+        .cases()
         .par_iter()
-        .map(|case| {
-            let dataset = firmware_sim::dataset::load_dataset(&dir.join(&case.data))?;
+        .map(|(_, data)| {
+            let dataset = firmware_sim::dataset::load_dataset(data)?;
             let clock = Instant::now();
             let diagnose_config = DiagnoseConfig { signature: Some(signature.clone()), ..DiagnoseConfig::default() };
             let outcome =
                 diagnose(&dataset, Some((&set, "fitted on the clean recording".into())), &diagnose_config, &|_| {});
             let diagnosis_s = clock.elapsed().as_secs_f64();
             progress();
-            Ok(match outcome {
-                Ok((diagnosis, _)) => {
-                    let first = diagnosis.effects.first().filter(|e| e.shrink_measured);
-                    Diagnosed {
-                        verdict: diagnosis.verdict.as_str().to_owned(),
-                        named: diagnosis.effects.iter().map(|e| e.name.clone()).collect(),
-                        named_channels: diagnosis.where_.channels.clone(),
-                        named_params: diagnosis.effects.first().map(|e| e.params.clone()).unwrap_or_default(),
-                        shrink: first.map(|e| e.shrink),
-                        shrink_total: first.map(|e| e.shrink_total),
-                        diagnosis_s,
-                    }
-                }
-                Err(error) => Diagnosed {
-                    verdict: format!("error: {error}"),
-                    named: Vec::new(),
-                    named_channels: Vec::new(),
-                    named_params: Default::default(),
-                    shrink: None,
-                    shrink_total: None,
-                    diagnosis_s,
-                },
-            })
+            Ok(Diagnosed::of(outcome.as_ref().map(|(d, _)| d).map_err(ToString::to_string), diagnosis_s))
         })
         .collect();
-
-    let mut records = Vec::with_capacity(index.cases.len());
-    for (case, diagnosed) in index.cases.iter().zip(diagnosed) {
-        let diagnosed = diagnosed?;
-        let truth_path = dir.join(&case.truth);
-        let truth_error = |message: String| ExternalError::Truth { path: truth_path.clone(), message };
-        let bytes = std::fs::read(&truth_path).map_err(|e| truth_error(e.to_string()))?;
-        let hash = model_fit::digest::sha256_hex(&bytes);
-        if hash != case.truth_sha256 {
-            return Err(truth_error(format!(
-                "its SHA-256 is {hash}, but the campaign recorded {} before the diagnosis",
-                case.truth_sha256
-            )));
-        }
-        let truth: Truth = serde_json::from_slice(&bytes).map_err(|e| truth_error(e.to_string()))?;
-        if truth.id != case.id {
-            return Err(truth_error(format!("holds case {}, expected case {}", truth.id, case.id)));
-        }
-        if truth.class.is_empty() || !truth.class.bytes().all(|b| b.is_ascii_lowercase() || b == b'_') {
-            return Err(truth_error(format!(
-                "class \"{}\" is not a name (none, an effect of the vocabulary, or one outside it in snake_case)",
-                truth.class
-            )));
-        }
-        let mut record = CaseRecord {
-            id: case.id,
-            class: truth.class,
-            alpha_deg: truth.alpha_deg.iter().copied().fold(0.0, f64::max),
-            target_ratio: truth.ratio.unwrap_or(0.0),
-            ratio: truth.ratio,
-            truth: String::from_utf8_lossy(&bytes).into_owned(),
-            truth_sha256: hash,
-            required_channels: truth
-                .channels
-                .iter()
-                .filter(|channel| {
-                    truth.channel_ratios.get(*channel).is_none_or(|ratio| ratio.is_none_or(|ratio| ratio >= 1.0))
-                })
-                .cloned()
-                .collect(),
-            truth_channels: truth.channels,
-            verdict: diagnosed.verdict,
-            named: diagnosed.named,
-            named_channels: diagnosed.named_channels,
-            named_params: diagnosed.named_params,
-            shrink: diagnosed.shrink,
-            shrink_total: diagnosed.shrink_total,
-            correct: false,
-            diagnosis_s: diagnosed.diagnosis_s,
-        };
-        record.correct = score::is_correct(&record);
-        records.push(record);
-    }
-    Ok(Outcome { records, seed: index.seed, fit_s })
+    let diagnosed = diagnosed.into_iter().collect::<Result<Vec<_>, _>>()?;
+    let records = campaign.score(diagnosed)?;
+    Ok(Outcome { records, seed: campaign.seed(), fit_s })
 }
 
-struct Diagnosed {
-    verdict: String,
-    named: Vec<String>,
-    named_channels: Vec<String>,
-    named_params: std::collections::BTreeMap<String, serde_json::Value>,
-    shrink: Option<f64>,
-    shrink_total: Option<f64>,
-    diagnosis_s: f64,
+/// A campaign folder written by another program, opened: its index read and checked, no truth
+/// read. The steps of [`run`], for a caller that diagnoses the cases elsewhere (other processes
+/// or machines): fit the clean recording, diagnose every case, then score them all at once.
+#[derive(Debug, Clone)]
+pub struct Campaign {
+    dir: PathBuf,
+    index: Index,
+}
+
+impl Campaign {
+    /// Reads the index of the campaign in `dir`.
+    ///
+    /// # Errors
+    /// A missing or malformed index, or one of another format.
+    pub fn open(dir: &Path) -> Result<Self, ExternalError> {
+        let index_path = dir.join("campaign.json");
+        let index_error = |message: String| ExternalError::Index { path: index_path.clone(), message };
+        let text = std::fs::read_to_string(&index_path).map_err(|e| index_error(e.to_string()))?;
+        let index: Index = serde_json::from_str(&text).map_err(|e| index_error(e.to_string()))?;
+        if index.format != FORMAT {
+            return Err(index_error(format!("format is \"{}\", expected \"{FORMAT}\"", index.format)));
+        }
+        Ok(Self { dir: dir.to_path_buf(), index })
+    }
+
+    /// The campaign's folder.
+    #[must_use]
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// The campaign's master seed.
+    #[must_use]
+    pub fn seed(&self) -> u64 {
+        self.index.seed
+    }
+
+    /// The model fitted on the clean recording, and its diagnosis signature.
+    ///
+    /// # Errors
+    /// A clean recording that does not load or fit.
+    pub fn fit_clean(&self) -> Result<(estimator_core::CoefficientSet, crate::diagnose::Signature), ExternalError> {
+        let clean_path = self.dir.join(&self.index.clean);
+        let clean = firmware_sim::dataset::load_dataset(&clean_path)?;
+        let config = FitConfig::default();
+        let set = fit_dataset(&clean, &config, &|_| {})
+            .map_err(|source| ExternalError::Fit { path: clean_path.clone(), source })?
+            .set;
+        let signature = crate::diagnose::signature(&clean, &set, config.split)?;
+        Ok((set, signature))
+    }
+
+    /// Every case's id and dataset folder, in the index's order.
+    #[must_use]
+    pub fn cases(&self) -> Vec<(usize, PathBuf)> {
+        self.index.cases.iter().map(|case| (case.id, self.dir.join(&case.data))).collect()
+    }
+
+    /// Scores every case: `diagnosed` holds what each case's diagnosis said, in the order of
+    /// [`Self::cases`]; only now is each truth file read and checked against its hash.
+    ///
+    /// # Errors
+    /// A diagnosis missing for a case, or a truth file that is missing, malformed or does not
+    /// match its recorded hash.
+    pub fn score(&self, diagnosed: Vec<Diagnosed>) -> Result<Vec<CaseRecord>, ExternalError> {
+        if diagnosed.len() != self.index.cases.len() {
+            return Err(ExternalError::Index {
+                path: self.dir.join("campaign.json"),
+                message: format!(
+                    "{} cases, but {} diagnoses to score: every case is diagnosed before any truth is read",
+                    self.index.cases.len(),
+                    diagnosed.len()
+                ),
+            });
+        }
+        self.index
+            .cases
+            .iter()
+            .zip(diagnosed)
+            .map(|(case, diagnosed)| Ok(sealed(&self.dir, case)?.score(diagnosed)))
+            .collect()
+    }
+}
+
+/// The truth of `case`, read and checked against the hash the index recorded.
+fn sealed(dir: &Path, case: &IndexCase) -> Result<Sealed, ExternalError> {
+    let truth_path = dir.join(&case.truth);
+    let truth_error = |message: String| ExternalError::Truth { path: truth_path.clone(), message };
+    let bytes = std::fs::read(&truth_path).map_err(|e| truth_error(e.to_string()))?;
+    let hash = model_fit::digest::sha256_hex(&bytes);
+    if hash != case.truth_sha256 {
+        return Err(truth_error(format!(
+            "its SHA-256 is {hash}, but the campaign recorded {} before the diagnosis",
+            case.truth_sha256
+        )));
+    }
+    let truth: Truth = serde_json::from_slice(&bytes).map_err(|e| truth_error(e.to_string()))?;
+    if truth.id != case.id {
+        return Err(truth_error(format!("holds case {}, expected case {}", truth.id, case.id)));
+    }
+    if truth.class.is_empty() || !truth.class.bytes().all(|b| b.is_ascii_lowercase() || b == b'_') {
+        return Err(truth_error(format!(
+            "class \"{}\" is not a name (none, an effect of the vocabulary, or one outside it in snake_case)",
+            truth.class
+        )));
+    }
+    Ok(Sealed {
+        id: case.id,
+        class: truth.class,
+        alpha_deg: truth.alpha_deg.iter().copied().fold(0.0, f64::max),
+        target_ratio: truth.ratio.unwrap_or(0.0),
+        ratio: truth.ratio,
+        truth: String::from_utf8_lossy(&bytes).into_owned(),
+        truth_sha256: hash,
+        required_channels: truth
+            .channels
+            .iter()
+            .filter(|channel| {
+                truth.channel_ratios.get(*channel).is_none_or(|ratio| ratio.is_none_or(|ratio| ratio >= 1.0))
+            })
+            .cloned()
+            .collect(),
+        truth_channels: truth.channels,
+    })
 }

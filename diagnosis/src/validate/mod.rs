@@ -30,6 +30,7 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::Serialize;
 
+use crate::diagnose::result::Diagnosis;
 use crate::diagnose::{DiagnoseConfig, Signature, diagnose};
 use model_fit::fit::pipeline::{FitConfig, fit_dataset};
 
@@ -145,22 +146,28 @@ pub struct CaseRecord {
     pub diagnosis_s: f64,
 }
 
-/// Runs the campaign; `progress` is called once per finished case.
-pub fn run_campaign(config: &CampaignConfig, progress: &(dyn Fn() + Sync)) -> Vec<CaseRecord> {
-    let models: Models = Mutex::new(HashMap::new());
-    let classes: Vec<Option<Effect>> = if config.classes.is_empty() {
+/// The classes a campaign's cases cycle through: [`classes`], or those of `config.classes`.
+fn campaign_classes(config: &CampaignConfig) -> Vec<Option<Effect>> {
+    if config.classes.is_empty() {
         classes()
     } else {
         classes().into_iter().filter(|c| config.classes.iter().any(|k| k == class_name(*c))).collect()
-    };
-    if classes.is_empty() {
-        return Vec::new();
     }
-    let ids: Vec<usize> = (0..config.cases).filter(|id| config.only.is_empty() || config.only.contains(id)).collect();
-    let mut records: Vec<CaseRecord> = ids
+}
+
+/// The ids of a campaign's cases: every one below `config.cases`, or those of `config.only`.
+#[must_use]
+pub fn case_ids(config: &CampaignConfig) -> Vec<usize> {
+    (0..config.cases).filter(|id| config.only.is_empty() || config.only.contains(id)).collect()
+}
+
+/// Runs the campaign; `progress` is called once per finished case.
+pub fn run_campaign(config: &CampaignConfig, progress: &(dyn Fn() + Sync)) -> Vec<CaseRecord> {
+    let models = CleanModels::default();
+    let mut records: Vec<CaseRecord> = case_ids(config)
         .into_par_iter()
         .filter_map(|id| {
-            let record = run_case(config, id, classes[id % classes.len()], &models);
+            let record = run_case(config, id, &models);
             progress();
             record
         })
@@ -178,9 +185,9 @@ fn base_scenario(config: &CampaignConfig, alpha_deg: f64, seed: u64) -> Scenario
 ///
 /// The clean recording is twice as long as a case's, so that the model's diagnosis signature
 /// (taken on its held-out part, as `fit` does) rests on as many samples as a case's training part.
-fn clean_model(config: &CampaignConfig, alpha_deg: f64, models: &Models) -> Option<(CoefficientSet, Signature)> {
+fn clean_model(config: &CampaignConfig, alpha_deg: f64, models: &CleanModels) -> Option<(CoefficientSet, Signature)> {
     let key = alpha_deg.to_bits();
-    if let Some(entry) = models.lock().ok()?.get(&key) {
+    if let Some(entry) = models.0.lock().ok()?.get(&key) {
         return Some(entry.clone());
     }
     let mut scenario = base_scenario(config, alpha_deg, mix_seed(config.seed, 0xC1EA_0000 + key % 1000));
@@ -188,14 +195,166 @@ fn clean_model(config: &CampaignConfig, alpha_deg: f64, models: &Models) -> Opti
     let dataset = scenario.simulate(&|| {}).ok()?;
     let set = fit_dataset(&dataset, &FitConfig::default(), &|_| {}).ok()?.set;
     let signature = crate::diagnose::signature(&dataset, &set, FitConfig::default().split).ok()?;
-    models.lock().ok()?.insert(key, (set, signature.clone()));
+    models.0.lock().ok()?.insert(key, (set, signature.clone()));
     Some((set, signature))
 }
 
-/// Clean models and their signatures, per angle of attack.
-type Models = Mutex<HashMap<u64, (CoefficientSet, Signature)>>;
+/// Clean models and their signatures, per angle of attack: fitted once, shared by the cases of
+/// a campaign that draw the angle.
+#[derive(Debug, Default)]
+pub struct CleanModels(Mutex<HashMap<u64, (CoefficientSet, Signature)>>);
 
-fn run_case(config: &CampaignConfig, id: usize, class: Option<Effect>, models: &Models) -> Option<CaseRecord> {
+/// One case as drawn, before it is diagnosed: the recording the diagnosis sees (its provenance
+/// stripped), the model fitted on a clean recording and its signature, and the truth, sealed.
+#[derive(Debug, Clone)]
+pub struct DrawnCase {
+    /// The recording, blind.
+    pub real: Dataset,
+    /// The sim: fitted on a clean recording at the case's angle of attack.
+    pub set: CoefficientSet,
+    /// The sim's diagnosis signature.
+    pub signature: Signature,
+    /// What was injected: for the scorer only.
+    pub sealed: Sealed,
+}
+
+/// The truth of a case, with its hash recorded when it was drawn: read only by the scorer,
+/// after the diagnosis ([`Sealed::score`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sealed {
+    id: usize,
+    class: String,
+    alpha_deg: f64,
+    target_ratio: f64,
+    ratio: Option<f64>,
+    truth: String,
+    truth_sha256: String,
+    truth_channels: Vec<String>,
+    required_channels: Vec<String>,
+}
+
+impl Sealed {
+    /// The case's id.
+    #[must_use]
+    pub fn id(&self) -> usize {
+        self.id
+    }
+
+    /// The case scored: the truth against what the diagnosis said.
+    #[must_use]
+    pub fn score(self, diagnosed: Diagnosed) -> CaseRecord {
+        let mut record = CaseRecord {
+            id: self.id,
+            class: self.class,
+            alpha_deg: self.alpha_deg,
+            target_ratio: self.target_ratio,
+            ratio: self.ratio,
+            truth: self.truth,
+            truth_sha256: self.truth_sha256,
+            truth_channels: self.truth_channels,
+            required_channels: self.required_channels,
+            verdict: diagnosed.verdict,
+            named: diagnosed.named,
+            named_channels: diagnosed.named_channels,
+            named_params: diagnosed.named_params,
+            shrink: diagnosed.shrink,
+            shrink_total: diagnosed.shrink_total,
+            correct: false,
+            diagnosis_s: diagnosed.diagnosis_s,
+        };
+        record.correct = score::is_correct(&record);
+        record
+    }
+}
+
+/// What a case's diagnosis said, as the scorer reads it: the verdict, the named effects, the
+/// channels, the first effect's parameters and its held-out shrink where it is measured.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Diagnosed {
+    /// The verdict's word, or `error: ...` when the diagnosis failed.
+    pub verdict: String,
+    /// Named effects, most responsible first.
+    pub named: Vec<String>,
+    /// The channels named for a sensor effect.
+    pub named_channels: Vec<String>,
+    /// The first named effect's parameters.
+    pub named_params: std::collections::BTreeMap<String, serde_json::Value>,
+    /// Held-out shrink of the first named effect, where measured.
+    pub shrink: Option<f64>,
+    /// The same against the whole held-out gap.
+    pub shrink_total: Option<f64>,
+    /// Seconds of the diagnosis.
+    pub diagnosis_s: f64,
+}
+
+impl Diagnosed {
+    /// What `outcome` said (its error's message when it failed), in `diagnosis_s` seconds.
+    #[must_use]
+    pub fn of(outcome: Result<&Diagnosis, String>, diagnosis_s: f64) -> Self {
+        match outcome {
+            Ok(diagnosis) => {
+                let first = diagnosis.effects.first().filter(|e| e.shrink_measured);
+                Self {
+                    verdict: diagnosis.verdict.as_str().to_owned(),
+                    named: diagnosis.effects.iter().map(|e| e.name.clone()).collect(),
+                    named_channels: diagnosis.where_.channels.clone(),
+                    named_params: diagnosis.effects.first().map(|e| e.params.clone()).unwrap_or_default(),
+                    shrink: first.map(|e| e.shrink),
+                    shrink_total: first.map(|e| e.shrink_total),
+                    diagnosis_s,
+                }
+            }
+            Err(message) => Self {
+                verdict: format!("error: {message}"),
+                named: Vec::new(),
+                named_channels: Vec::new(),
+                named_params: std::collections::BTreeMap::new(),
+                shrink: None,
+                shrink_total: None,
+                diagnosis_s,
+            },
+        }
+    }
+
+    /// What a `diagnosis.json` says (the contract of docs/spec/diagnosis.md, "Machine-readable
+    /// result"): a diagnosis run elsewhere (another process or machine) scored here. A field the
+    /// contract requires but the file lacks reads as nothing named.
+    #[must_use]
+    pub fn from_contract(json: &serde_json::Value, diagnosis_s: f64) -> Self {
+        let effects = json["effects"].as_array().map(Vec::as_slice).unwrap_or_default();
+        let first = effects.first();
+        let measured = first.filter(|e| e["shrink_measured"].as_bool().unwrap_or(true));
+        let strings = |value: &serde_json::Value| -> Vec<String> {
+            value
+                .as_array()
+                .map(|items| items.iter().filter_map(|v| v.as_str().map(str::to_owned)).collect())
+                .unwrap_or_default()
+        };
+        Self {
+            verdict: json["verdict"].as_str().unwrap_or("error: no verdict").to_owned(),
+            named: effects.iter().filter_map(|e| e["name"].as_str().map(str::to_owned)).collect(),
+            named_channels: strings(&json["where"]["channels"]),
+            named_params: first
+                .and_then(|e| e["params"].as_object())
+                .map(|params| params.iter().map(|(k, v)| (k.clone(), v.clone())).collect())
+                .unwrap_or_default(),
+            shrink: measured.and_then(|e| e["shrink"].as_f64()),
+            shrink_total: measured.and_then(|e| e["shrink_total"].as_f64()),
+            diagnosis_s,
+        }
+    }
+}
+
+/// Draws case `id` of the campaign as [`run_campaign`] does (its draw depends on the master
+/// seed and the id alone): the recording, blind, its model and the sealed truth. `None` when
+/// the clean recording cannot be fitted or the effect cannot be calibrated.
+#[must_use]
+pub fn draw_case(config: &CampaignConfig, id: usize, models: &CleanModels) -> Option<DrawnCase> {
+    let classes = campaign_classes(config);
+    if classes.is_empty() {
+        return None;
+    }
+    let class = classes[id % classes.len()];
     let mut rng = ChaCha8Rng::seed_from_u64(mix_seed(config.seed, 7_000 + id as u64));
     let alpha_deg = config.alphas_deg[rng.random_range(0..config.alphas_deg.len())];
     let [low, high] = config.ratio_range;
@@ -210,6 +369,24 @@ fn run_case(config: &CampaignConfig, id: usize, class: Option<Effect>, models: &
     scenario.effects = effects.clone();
     let mut real = scenario.simulate(&|| {}).ok()?;
     blind(&mut real);
+    let truth = format!("{effects:?}");
+    let truth_sha256 = model_fit::digest::sha256_hex(truth.as_bytes());
+    let sealed = Sealed {
+        id,
+        class: class_name(class).to_owned(),
+        alpha_deg,
+        target_ratio,
+        ratio,
+        truth,
+        truth_sha256,
+        required_channels: truth_channels.clone(),
+        truth_channels,
+    };
+    Some(DrawnCase { real, set, signature, sealed })
+}
+
+fn run_case(config: &CampaignConfig, id: usize, models: &CleanModels) -> Option<CaseRecord> {
+    let DrawnCase { real, set, signature, sealed } = draw_case(config, id, models)?;
     if let Some(keep) = &config.keep {
         let dir = keep.join(format!("case-{id:03}"));
         let _ = std::fs::create_dir_all(&dir);
@@ -222,47 +399,12 @@ fn run_case(config: &CampaignConfig, id: usize, class: Option<Effect>, models: &
             serde_json::to_string_pretty(&signature).unwrap_or_default(),
         );
     }
-    let truth = format!("{effects:?}");
-    let truth_sha256 = model_fit::digest::sha256_hex(truth.as_bytes());
     let clock = Instant::now();
     let diagnose_config = DiagnoseConfig { signature: Some(signature), ..DiagnoseConfig::default() };
     let outcome = diagnose(&real, Some((&set, "fitted on a clean recording".into())), &diagnose_config, &|_| {});
     let diagnosis_s = clock.elapsed().as_secs_f64();
-    let (verdict, named, named_channels, named_params, shrink, shrink_total) = match outcome {
-        Ok((diagnosis, _)) => {
-            let first = diagnosis.effects.first().filter(|e| e.shrink_measured);
-            (
-                diagnosis.verdict.as_str().to_owned(),
-                diagnosis.effects.iter().map(|e| e.name.clone()).collect::<Vec<_>>(),
-                diagnosis.where_.channels.clone(),
-                diagnosis.effects.first().map(|e| e.params.clone()).unwrap_or_default(),
-                first.map(|e| e.shrink),
-                first.map(|e| e.shrink_total),
-            )
-        }
-        Err(error) => (format!("error: {error}"), Vec::new(), Vec::new(), Default::default(), None, None),
-    };
-    let mut record = CaseRecord {
-        id,
-        class: class_name(class).to_owned(),
-        alpha_deg,
-        target_ratio,
-        ratio,
-        truth,
-        truth_sha256,
-        required_channels: truth_channels.clone(),
-        truth_channels,
-        verdict,
-        named,
-        named_channels,
-        named_params,
-        shrink,
-        shrink_total,
-        correct: false,
-        diagnosis_s,
-    };
-    record.correct = score::is_correct(&record);
-    Some(record)
+    let diagnosed = Diagnosed::of(outcome.as_ref().map(|(d, _)| d).map_err(ToString::to_string), diagnosis_s);
+    Some(sealed.score(diagnosed))
 }
 
 /// Strips what would tell the answer: the provenance keys the tunnel writes into the manifest

@@ -249,16 +249,38 @@ fn write_validation(
     described: String,
     config: &str,
 ) -> Result<ValidationSummary, CommandError> {
-    let summary = score::summarise(&records);
-    let report = score::report(&records, &summary, &described);
-    let json = serde_json::json!({ "config": config, "summary": summary, "cases": records });
-    reports::write_report(folder, &report, "validation.json", &json).map_err(CommandError::write(folder))?;
-    let acceptance = report.sections.first().and_then(|section| section.tables.first()).map(|table| table.rows.clone());
+    let scored = validation_report(&records, &described, config);
+    reports::write_report(folder, &scored.report, "validation.json", &scored.json)
+        .map_err(CommandError::write(folder))?;
     Ok(ValidationSummary {
         records,
-        summary,
-        acceptance: acceptance.unwrap_or_default(),
+        summary: scored.summary,
+        acceptance: scored.acceptance,
         described,
         report: folder.join("report.html"),
     })
+}
+
+/// A campaign's scores, before anything is written.
+#[derive(Debug, Clone)]
+pub struct ScoredCampaign {
+    /// The acceptance figures.
+    pub summary: Summary,
+    /// The acceptance table's rows (criterion, goal, value), as in the report.
+    pub acceptance: Vec<Vec<String>>,
+    /// The report (tables).
+    pub report: reports::Report,
+    /// `validation.json`: the configuration as `config`, the summary, every case.
+    pub json: serde_json::Value,
+}
+
+/// The scores of a campaign's `records` and its report, as `validate-diagnosis` writes them;
+/// `described` says where the cases came from, `config` how they were drawn.
+#[must_use]
+pub fn validation_report(records: &[CaseRecord], described: &str, config: &str) -> ScoredCampaign {
+    let summary = score::summarise(records);
+    let report = score::report(records, &summary, described);
+    let json = serde_json::json!({ "config": config, "summary": summary, "cases": records });
+    let acceptance = report.sections.first().and_then(|section| section.tables.first()).map(|table| table.rows.clone());
+    ScoredCampaign { summary, acceptance: acceptance.unwrap_or_default(), report, json }
 }
