@@ -20,28 +20,31 @@ const BLOCK_ROWS: usize = 1024;
 /// minimum-norm solution comes from an SVD of the small factor.
 const TRIANGULAR_RCOND: f64 = 1e-10;
 
-/// The upper-triangular factor `R_aug` ((p + 1) x (p + 1)) of `[Theta | y] = Q R_aug`.
+/// The upper-triangular factor `R_aug` ((p + k) x (p + k)) of `[Theta | y_1 ... y_k] = Q R_aug`.
 ///
-/// Its leading p x p block is the R of Theta, its last column holds `Q^T y` above the
-/// residual norm `|y - Q Q^T y|` (Golub & Van Loan, section 5.3.2: least squares via QR of
-/// the augmented matrix). Blocks of rows are reduced independently and their factors are
-/// stacked and reduced again (the TSQR of Demmel, Grigori, Hoemmen & Langou, SIAM J. Sci.
-/// Comput. 34(1), 2012), which is exact because `[A1; A2] = diag(Q1, Q2) [R1; R2]`.
-pub(crate) fn tsqr_augmented(theta: &DMatrix<f64>, y: &[f64]) -> DMatrix<f64> {
+/// Its leading p x p block is the R of Theta; the column of target j holds `Q^T y_j` in its
+/// first p rows and, below them, a vector whose norm is the residual `|y_j - Q Q^T y_j|`
+/// (Golub & Van Loan, section 5.3.2: least squares via QR of the augmented matrix; one
+/// target gives the single residual entry). Householder reflections act column by column, so
+/// in exact arithmetic a target's column does not depend on the others. Blocks of rows are
+/// reduced independently and their factors are stacked and reduced again (the TSQR of
+/// Demmel, Grigori, Hoemmen & Langou, SIAM J. Sci. Comput. 34(1), 2012), which is exact
+/// because `[A1; A2] = diag(Q1, Q2) [R1; R2]`.
+pub(crate) fn tsqr_augmented(theta: &DMatrix<f64>, targets: &[&[f64]]) -> DMatrix<f64> {
     let n_rows = theta.nrows();
-    let width = theta.ncols() + 1;
+    let n_features = theta.ncols();
+    let width = n_features + targets.len();
     let starts: Vec<usize> = (0..n_rows).step_by(BLOCK_ROWS).collect();
-    let factors: Vec<DMatrix<f64>> =
-        starts
-            .par_iter()
-            .map(|&start| {
-                let rows = BLOCK_ROWS.min(n_rows - start);
-                let block = DMatrix::from_fn(rows, width, |row, col| {
-                    if col + 1 < width { theta[(start + row, col)] } else { y[start + row] }
-                });
-                block.qr().r()
-            })
-            .collect();
+    let factors: Vec<DMatrix<f64>> = starts
+        .par_iter()
+        .map(|&start| {
+            let rows = BLOCK_ROWS.min(n_rows - start);
+            let block = DMatrix::from_fn(rows, width, |row, col| {
+                if col < n_features { theta[(start + row, col)] } else { targets[col - n_features][start + row] }
+            });
+            block.qr().r()
+        })
+        .collect();
     let stacked_rows: usize = factors.iter().map(DMatrix::nrows).sum();
     let mut stacked = DMatrix::zeros(stacked_rows.max(width), width);
     let mut offset = 0;
@@ -137,7 +140,7 @@ mod tests {
         let n_rows = 3 * BLOCK_ROWS + 17;
         let theta = DMatrix::from_fn(n_rows, 4, |row, col| ((row * (col + 3)) as f64 * 0.37).sin() + col as f64);
         let y: Vec<f64> = (0..n_rows).map(|row| (row as f64 * 0.11).cos()).collect();
-        let r_blocks = tsqr_augmented(&theta, &y);
+        let r_blocks = tsqr_augmented(&theta, &[&y]);
         let direct = DMatrix::from_fn(n_rows, 5, |row, col| if col < 4 { theta[(row, col)] } else { y[row] }).qr().r();
         for row in 0..5 {
             let sign = r_blocks[(row, row)].signum() * direct[(row, row)].signum();

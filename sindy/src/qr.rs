@@ -51,15 +51,37 @@ pub struct QrProblem {
 impl QrProblem {
     /// Factors `[Theta | y]` once (O(N p^2)); rejects empty, mismatched or non-finite data.
     pub fn new(theta: &DMatrix<f64>, y: &[f64]) -> Result<Self, SindyError> {
-        let (n_samples, n_features) = theta.shape();
         check_dense(theta, y)?;
-        let r_aug = tsqr_augmented(theta, y);
+        let r_aug = tsqr_augmented(theta, &[y]);
+        Ok(Self::from_factor(theta, &r_aug, column_norms(theta), 0, y))
+    }
+
+    /// The problems of several targets over one library (a SINDy fit of every state's
+    /// derivative), from one factorisation of `[Theta | y_1 ... y_k]`: O(N (p + k)^2) instead
+    /// of k times O(N p^2). Each equals [`QrProblem::new`] of its target up to rounding.
+    pub fn for_targets(theta: &DMatrix<f64>, targets: &[&[f64]]) -> Result<Vec<Self>, SindyError> {
+        if targets.is_empty() {
+            return Err(SindyError::EmptyData { what: "targets" });
+        }
+        check_library(theta)?;
+        for y in targets {
+            check_target(theta.nrows(), y)?;
+        }
+        let r_aug = tsqr_augmented(theta, targets);
+        let norms = column_norms(theta);
+        Ok(targets.iter().enumerate().map(|(idx, y)| Self::from_factor(theta, &r_aug, norms.clone(), idx, y)).collect())
+    }
+
+    /// The problem of target `idx` from the factor `R_aug` of `[Theta | y_1 ... y_k]`: R, the
+    /// target's `Q^T y` and, as its residual, the squared norm of the rest of its column.
+    fn from_factor(theta: &DMatrix<f64>, r_aug: &DMatrix<f64>, column_norms: Vec<f64>, idx: usize, y: &[f64]) -> Self {
+        let (n_samples, n_features) = theta.shape();
         let r = r_aug.view((0, 0), (n_features, n_features)).into_owned();
-        let qty = r_aug.view((0, n_features), (n_features, 1)).column(0).into_owned();
-        let residual_sq = r_aug[(n_features, n_features)].powi(2);
-        let column_norms = theta.column_iter().map(|column| column.norm()).collect();
+        let column = r_aug.column(n_features + idx);
+        let qty = column.rows(0, n_features).into_owned();
+        let residual_sq = column.rows_range(n_features..).iter().map(|value| value.powi(2)).sum();
         let y_norm_sq = y.iter().map(|value| value * value).sum();
-        Ok(Self { r, qty, y_norm_sq, residual_sq, column_norms, n_samples })
+        Self { r, qty, y_norm_sq, residual_sq, column_norms, n_samples }
     }
 
     /// The number of samples N.
@@ -153,8 +175,19 @@ pub(crate) fn ridge_weight(alpha: f64, n_samples: usize, normalisation: Normalis
     }
 }
 
+/// The L2 norm of each column of Theta.
+fn column_norms(theta: &DMatrix<f64>) -> Vec<f64> {
+    theta.column_iter().map(|column| column.norm()).collect()
+}
+
 /// Checks a dense problem: non-empty, one target per row, all values finite.
 pub(crate) fn check_dense(theta: &DMatrix<f64>, y: &[f64]) -> Result<(), SindyError> {
+    check_library(theta)?;
+    check_target(theta.nrows(), y)
+}
+
+/// Checks a library: at least one sample and one term, all values finite.
+fn check_library(theta: &DMatrix<f64>) -> Result<(), SindyError> {
     let (n_samples, n_features) = theta.shape();
     if n_samples == 0 {
         return Err(SindyError::EmptyData { what: "samples" });
@@ -162,13 +195,18 @@ pub(crate) fn check_dense(theta: &DMatrix<f64>, y: &[f64]) -> Result<(), SindyEr
     if n_features == 0 {
         return Err(SindyError::EmptyData { what: "library terms" });
     }
-    if y.len() != n_samples {
-        return Err(SindyError::DimensionMismatch { what: "target length", expected: n_samples, found: y.len() });
-    }
     for (col, column) in theta.column_iter().enumerate() {
         if let Some(row) = column.iter().position(|value| !value.is_finite()) {
             return Err(SindyError::NonFinite { name: format!("library column {col}"), row });
         }
+    }
+    Ok(())
+}
+
+/// Checks a target: one value per sample, all finite.
+fn check_target(n_samples: usize, y: &[f64]) -> Result<(), SindyError> {
+    if y.len() != n_samples {
+        return Err(SindyError::DimensionMismatch { what: "target length", expected: n_samples, found: y.len() });
     }
     if let Some(row) = y.iter().position(|value| !value.is_finite()) {
         return Err(SindyError::NonFinite { name: "target".to_owned(), row });
@@ -194,6 +232,32 @@ mod tests {
             .sum();
         assert!((problem.rss(&w).unwrap() - direct).abs() < 1e-9 * direct);
         assert!((problem.y_norm_sq() - problem.rss(&[0.0; 3]).unwrap()).abs() < 1e-9 * problem.y_norm_sq());
+    }
+
+    #[test]
+    fn one_factorisation_of_every_target_gives_each_targets_problem() {
+        let theta = DMatrix::from_fn(2500, 4, |row, col| ((row * (col + 2)) as f64 * 0.013).sin() + col as f64);
+        let targets: Vec<Vec<f64>> =
+            (1..=3).map(|k| (0..2500).map(|row| (row as f64 * 0.002 * k as f64).cos()).collect()).collect();
+        let views: Vec<&[f64]> = targets.iter().map(Vec::as_slice).collect();
+        let together = QrProblem::for_targets(&theta, &views).unwrap();
+        assert_eq!(together.len(), 3);
+        for (problem, y) in together.iter().zip(&targets) {
+            let alone = QrProblem::new(&theta, y).unwrap();
+            // R and Q^T y are unique up to the signs of R's rows, which both factorisations share.
+            let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * alone.r().norm();
+            assert!(problem.r().iter().zip(alone.r().iter()).all(|(a, b)| close(*a, *b)));
+            assert!(problem.qty().iter().zip(alone.qty().iter()).all(|(a, b)| close(*a, *b)));
+            let w = [0.2, -0.1, 0.05, 0.3];
+            let (rss, expected) = (problem.rss(&w).unwrap(), alone.rss(&w).unwrap());
+            assert!((rss - expected).abs() <= 1e-10 * expected, "{rss} vs {expected}");
+        }
+        assert!(matches!(QrProblem::for_targets(&theta, &[]), Err(SindyError::EmptyData { what: "targets" })));
+        let short = [1.0; 3];
+        assert!(matches!(
+            QrProblem::for_targets(&theta, &[&targets[0], &short]),
+            Err(SindyError::DimensionMismatch { .. })
+        ));
     }
 
     #[test]
