@@ -6,21 +6,25 @@ replay it (:meth:`Model.replay`), evaluate it (:func:`evaluate`), diagnose the s
 (:func:`diagnose`), and step the estimator that flies (:class:`Estimator`), bit for bit as the
 firmware steps it.
 
+Everything runs in memory: a :class:`Dataset` built from arrays or DataFrames
+(:meth:`Dataset.from_pandas`) is fitted, evaluated and diagnosed without being written, and a
+report folder is written only when one is asked for.
+
 Quick start::
 
     import rollest
-    data = rollest.load_dataset("out/campaign")
-    model = rollest.fit(data, "out/model")
+    data = rollest.load_dataset("out/campaign")   # or rollest.Dataset.from_pandas(frames, ...)
+    model = rollest.fit(data)                     # in memory; model.save("out/model") to keep it
     est = rollest.Estimator(model)
-    outputs = est.run(data.runs[0])          # every stage's output, as arrays
+    outputs = est.run(data.runs[0])               # every stage's output, as arrays
+    print(rollest.diagnose(data, model=model).verdict)
 """
 
 from __future__ import annotations
 
 import json
 import os
-import tempfile
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
@@ -28,12 +32,17 @@ import numpy as np
 
 from . import _rollest
 from ._rollest import DatasetError, RollestError
+from . import sindy
+from .campaign import Validation, validate_diagnosis
+from .dataset import Dataset, PathLike, Run, as_dataset, load_dataset
+from .diagnosis import Diagnosis
 
 if TYPE_CHECKING:  # pragma: no cover
     import pandas
 
 __all__ = [
     "DEFAULT_HOLDOUT_FRACTION",
+    "__version__",
     "Dataset",
     "DatasetError",
     "Diagnosis",
@@ -44,20 +53,24 @@ __all__ = [
     "REPLAY_COLUMNS",
     "RollestError",
     "Run",
+    "Validation",
     "diagnose",
     "evaluate",
     "fit",
     "heldout_start",
     "load_dataset",
     "simulate",
+    "validate_diagnosis",
 ]
 
-PathLike = Union[str, "os.PathLike[str]"]
 #: A progress callable of the long calls: ``progress(message, done, total)``. At each new stage
 #: ``done`` is 0 and ``total`` the stage's number of steps (None when not counted); each step
 #: done calls it again. It runs on the command's worker threads; an exception it raises is
 #: raised when the call returns.
 Progress = Callable[[str, int, Optional[int]], object]
+
+#: The package's version (the workspace's).
+__version__: str = _rollest.__version__
 
 #: Share of every run, at its end, held out from fitting (the command line's default).
 DEFAULT_HOLDOUT_FRACTION: float = _rollest.DEFAULT_HOLDOUT_FRACTION
@@ -71,104 +84,6 @@ CP_COLUMNS: List[str] = [f"cp{tap:02d}" for tap in range(1, 13)]
 def heldout_start(n_samples: int, holdout_fraction: float = DEFAULT_HOLDOUT_FRACTION) -> int:
     """The first held-out sample of a run of ``n_samples`` (the split of fit, evaluate, diagnose)."""
     return _rollest.heldout_start(n_samples, holdout_fraction)
-
-
-def _pandas() -> Any:
-    try:
-        import pandas
-    except ImportError as error:  # pragma: no cover - depends on the environment
-        raise ImportError("to_pandas() needs pandas: pip install 'rollest[pandas]'") from error
-    return pandas
-
-
-@dataclass(frozen=True)
-class Run:
-    """One recorded run: its manifest entry and its channels as float64 arrays.
-
-    ``arrays`` holds ``t_s``, ``phi_deg``, ``cmu_port``, ``cmu_stbd``, ``cp01`` .. ``cp12`` and
-    ``cl`` (the roll-moment coefficient, converted from ``mx_nm`` when the file had that), and
-    ``alpha_deg``, ``phi_cmd_deg``, ``cmu_port_cmd``, ``cmu_stbd_cmd`` when recorded. A missing
-    sample is NaN. Columns the format does not define (a rig's ``temperature_c``, say) are
-    ignored, as the format says; ``pandas.read_csv`` reads them.
-    """
-
-    file: str
-    kind: str
-    alpha_deg: float
-    sample_hz: float
-    extra: Dict[str, Any]
-    arrays: Dict[str, np.ndarray] = field(repr=False)
-
-    def __len__(self) -> int:
-        return len(self.arrays["t_s"])
-
-    def alpha_series(self) -> np.ndarray:
-        """Angle of attack per sample, deg: the recorded column where finite, else the run's."""
-        alpha = self.arrays.get("alpha_deg")
-        if alpha is None:
-            return np.full(len(self), self.alpha_deg)
-        return np.where(np.isfinite(alpha), alpha, self.alpha_deg)
-
-    def to_pandas(self) -> "pandas.DataFrame":
-        """The channels as a DataFrame indexed by ``t_s`` (needs pandas)."""
-        frame: "pandas.DataFrame" = _pandas().DataFrame(self.arrays).set_index("t_s")
-        return frame
-
-
-class Dataset:
-    """A dataset folder (``roll-dataset/1``): tunnel, wing, extra keys and runs in manifest order."""
-
-    def __init__(self, native: _rollest.Dataset) -> None:
-        self._native = native
-        manifest = json.loads(native.manifest_json())
-        self.tunnel: Dict[str, float] = manifest["tunnel"]
-        self.wing: Dict[str, float] = manifest["wing"]
-        self.extra: Dict[str, Any] = manifest["extra"]
-        self.runs: List[Run] = [
-            Run(
-                file=meta["file"],
-                kind=meta["kind"],
-                alpha_deg=meta["alpha_deg"],
-                sample_hz=meta["sample_hz"],
-                extra=meta["extra"],
-                arrays=dict(native.run_arrays(index)),
-            )
-            for index, meta in enumerate(manifest["runs"])
-        ]
-
-    @property
-    def path(self) -> Path:
-        """The folder (or manifest) it was read from."""
-        return Path(self._native.path)
-
-    def __len__(self) -> int:
-        return len(self.runs)
-
-    def __repr__(self) -> str:
-        return f"Dataset({str(self.path)!r}, {len(self.runs)} runs)"
-
-    def to_pandas(self) -> "pandas.DataFrame":
-        """Every run in one long DataFrame, with ``run`` (file), ``kind`` and ``run_alpha_deg``
-        columns (needs pandas)."""
-        pd = _pandas()
-        frames = []
-        for run in self.runs:
-            frame = pd.DataFrame(run.arrays)
-            frame.insert(0, "run_alpha_deg", run.alpha_deg)
-            frame.insert(0, "kind", run.kind)
-            frame.insert(0, "run", run.file)
-            frames.append(frame)
-        whole: "pandas.DataFrame" = pd.concat(frames, ignore_index=True)
-        return whole
-
-
-def load_dataset(path: PathLike) -> Dataset:
-    """Reads a dataset folder (or its ``manifest.toml``).
-
-    Raises :class:`DatasetError` (with ``file``, ``row``, ``column`` and ``key`` attributes) on
-    bad input, as the command line reports it.
-    """
-    return Dataset(_rollest.load_dataset(os.fspath(path)))
 
 
 def simulate(
@@ -190,10 +105,6 @@ def simulate(
     scenario_path = None if scenario is None else os.fspath(scenario)
     _rollest.simulate(os.fspath(out), scenario_path, seed, duration_s, list(effects), progress)
     return load_dataset(out)
-
-
-def _data_path(data: Union[Dataset, PathLike]) -> str:
-    return os.fspath(data.path if isinstance(data, Dataset) else data)
 
 
 class Model:
@@ -234,9 +145,45 @@ class Model:
 
     @property
     def coefficients(self) -> Dict[str, Any]:
-        """Every coefficient table, by the core's field names (a copy)."""
-        coefficients: Dict[str, Any] = json.loads(self._native.coefficients_json())
+        """Every coefficient table by the core's field names, its numbers as NumPy arrays (a
+        copy): ``model.coefficients["plant"][0]["model"]``, say."""
+        coefficients: Dict[str, Any] = _arrays(json.loads(self._native.coefficients_json()))
         return coefficients
+
+    def equations(self, precision: int = 3) -> Dict[str, str]:
+        """Each sparse model of the fit as an equation with its terms' names, as PySINDy's
+        ``SINDy.print()`` writes them (coefficients to ``precision`` decimals): the plant of
+        each jet (paper eq. 5) and the coupling operator (eqs. 9-12), by block.
+
+        Needs the fit's report (a model fitted here, or a model folder written by ``fit``); the
+        built-in tables are ``models/default``'s, whose folder has it."""
+        report = self.report
+        if report is None:
+            raise RollestError(
+                f"{self.source}: expected a fit report (model.json) to name the sparse models' terms; "
+                "load the model folder written by fit (the built-in tables are models/default's)"
+            )
+
+        def equation(lhs: str, fit: Optional[Dict[str, Any]]) -> Optional[str]:
+            if fit is None:
+                return None
+            terms = [(str(name), float(value)) for name, value in fit["terms"] if float(value) != 0.0]
+            rhs = " ".join(
+                f"{'-' if value < 0 else '+'} {abs(value):.{precision}f} {name}" for name, value in terms
+            ).lstrip("+ ")
+            return f"{lhs} = {rhs or '0'}"
+
+        blocks = {
+            "plant_port": equation("C_l,AFC,port[k+1]", report["plant"][0]),
+            "plant_starboard": equation("C_l,AFC,stbd[k+1]", report["plant"][1]),
+            "coupling": equation("C_l - C_l,roll - C_l,AFC", report.get("coupling")),
+        }
+        return {block: text for block, text in blocks.items() if text is not None}
+
+    def print(self, precision: int = 3) -> None:
+        """Prints :meth:`equations`, one line per sparse model, as PySINDy's ``print()``."""
+        for text in self.equations(precision).values():
+            print(text)
 
     @property
     def card(self) -> Optional[str]:
@@ -260,16 +207,27 @@ class Model:
         self._native.save(os.fspath(path))
 
     def replay(
-        self, dataset: Dataset, *, faults: Sequence[str] = (), fault_seed: int = 1
-    ) -> List[Dict[str, np.ndarray]]:
+        self, dataset: Union[Dataset, PathLike], *, faults: Sequence[str] = (), fault_seed: int = 1, frame: bool = False
+    ) -> List[Any]:
         """Replays every run of ``dataset`` as ``host-tools replay`` does (same outputs, bit for
         bit), with sensor ``faults`` (``--fault`` specs such as ``"stuck:cp07@10s"``) when given.
 
         Returns, per run in manifest order, the replay file's columns (:data:`REPLAY_COLUMNS`)
-        as arrays: recorded float64, estimates float32, health uint16.
+        as arrays: recorded float64, estimates float32, health uint16; with ``frame``, as a
+        DataFrame indexed by ``t_s`` (needs pandas).
         """
-        replayed = self._native.replay(dataset._native, list(faults), fault_seed)
-        return [{name: run[name] for name in REPLAY_COLUMNS} for run in replayed]
+        replayed = self._native.replay(as_dataset(dataset)._native, list(faults), fault_seed)
+        runs = [{name: run[name] for name in REPLAY_COLUMNS} for run in replayed]
+        if not frame:
+            return runs
+        from .dataset import _pandas
+
+        return [_pandas().DataFrame(run).set_index("t_s") for run in runs]
+
+    def __reduce__(self) -> Tuple[Any, Tuple[Any, ...]]:
+        """Pickled as its model folder's files (a campaign sends models to other processes)."""
+        path = self._native.path
+        return (_model_from_files, (self.source, self._native.files(), path))
 
     def __repr__(self) -> str:
         return f"Model({self.source!r})"
@@ -277,6 +235,52 @@ class Model:
     def _repr_markdown_(self) -> str:
         """A notebook shows the model card."""
         return self.card or f"Model from {self.source} (no model card)"
+
+    def _repr_html_(self) -> str:
+        """A notebook shows where the model came from, its sparse models as equations, and its
+        held-out table."""
+        import html
+
+        parts = [f"<div><p><b>Model</b> from {html.escape(self.source)}; step {self.dt_s:g} s</p>"]
+        report = self.report
+        if report is not None:
+            parts.append("<pre>" + html.escape("\n".join(self.equations().values())) + "</pre>")
+            rows = report.get("heldout", {}).get("per_alpha", [])
+            if rows:
+                columns = [key for key, value in rows[0].items() if not isinstance(value, (dict, list))]
+                head = "".join(f"<th>{html.escape(column)}</th>" for column in columns)
+                body = "".join(
+                    "<tr>" + "".join(f"<td>{_cell(row[column])}</td>" for column in columns) + "</tr>" for row in rows
+                )
+                parts.append(f"<p>Held-out RMS of C_l</p><table><tr>{head}</tr>{body}</table>")
+        parts.append("</div>")
+        return "".join(parts)
+
+
+def _model_from_files(source: str, files: List[Tuple[str, bytes]], path: Optional[str]) -> Model:
+    """A pickled :class:`Model`, built again from its files."""
+    return Model(_rollest.Model.from_files(source, files, path))
+
+
+def _cell(value: Any) -> str:
+    """A table cell: numbers to four significant digits."""
+    return f"{value:.4g}" if isinstance(value, float) else str(value)
+
+
+def _arrays(value: Any) -> Any:
+    """A JSON value with every list of numbers (of any nesting) as a float64 array."""
+    if isinstance(value, dict):
+        return {key: _arrays(item) for key, item in value.items()}
+    if isinstance(value, list):
+        if value and all(isinstance(item, (int, float)) and not isinstance(item, bool) for item in value):
+            return np.asarray(value, dtype=np.float64)
+        converted = [_arrays(item) for item in value]
+        if converted and all(isinstance(item, np.ndarray) for item in converted):
+            shapes = {item.shape for item in converted}
+            if len(shapes) == 1:
+                return np.stack(converted)
+        return converted
+    return value
 
 
 def fit(
@@ -287,76 +291,96 @@ def fit(
     holdout_fraction: float = DEFAULT_HOLDOUT_FRACTION,
     progress: Optional[Progress] = None,
 ) -> Model:
-    """Fits every coefficient on the training part of ``data`` (``host-tools fit``).
+    """Fits every coefficient on the training part of ``data`` (``host-tools fit``): a
+    :class:`Dataset` (in memory or read) or a dataset folder.
 
-    The model folder goes to ``out`` (replaced atomically), or to a new temporary folder when
-    None (save it with :meth:`Model.save`). ``progress`` is told how far it is
-    (:data:`Progress`).
+    The model is held in memory; with ``out``, its model folder is also written there
+    (replaced atomically), as ``host-tools fit --out`` writes it. Nothing else is written.
+    ``progress`` is told how far it is (:data:`Progress`).
     """
-    target = tempfile.mkdtemp(prefix="rollest-model-") if out is None else os.fspath(out)
-    if out is None:
-        os.rmdir(target)  # the fit writes the folder whole, or not at all
-    return Model(_rollest.fit(_data_path(data), target, seed, holdout_fraction, progress))
+    dataset = as_dataset(data)
+    target = None if out is None else os.fspath(out)
+    return Model(_rollest.fit(dataset._native, target, seed, holdout_fraction, progress))
 
 
-def _model_path(model: Optional[Union[Model, PathLike]]) -> Optional[str]:
-    if model is None:
-        return None
-    if isinstance(model, Model):
-        return None if model.path is None else os.fspath(model.path)
-    return os.fspath(model)
+def _as_model(model: Optional[Union[Model, PathLike]]) -> Optional[Model]:
+    if model is None or isinstance(model, Model):
+        return model
+    return Model.load(model)
 
 
 @dataclass(frozen=True)
 class Evaluation:
-    """What :func:`evaluate` wrote: ``results`` (``evaluation.json`` as a dict), the report
-    folder and its page, and what the report left out."""
+    """What :func:`evaluate` found: ``results`` (``evaluation.json`` as a dict), what the
+    report left out, and the report folder and its page when one was written."""
 
     results: Dict[str, Any]
-    folder: Path
-    page: Path
     warnings: List[str]
+    folder: Optional[Path] = None
+    page: Optional[Path] = None
+
+    def heldout_per_alpha(self) -> "pandas.DataFrame":
+        """Table 1 of the paper on the held-out part, one row per angle of attack (needs
+        pandas): the estimate's error over the roll moment's mean and spread."""
+        return _frame(self.results["evaluation"]["table1"], "alpha_deg")
+
+    def coupling_per_alpha(self) -> "pandas.DataFrame":
+        """Tables 2 and 3 on the held-out part, one row per angle of attack (needs pandas): the
+        coupling operator's error against the linear superposition's."""
+        return _frame(self.results["evaluation"]["coupling"], "alpha_deg")
+
+    def _repr_html_(self) -> str:
+        """A notebook shows the held-out tables."""
+        parts = ["<div><p><b>Evaluation on the held-out part</b></p>"]
+        try:
+            parts.append(self.heldout_per_alpha().to_html(float_format=lambda value: f"{value:.4g}"))
+            parts.append(self.coupling_per_alpha().to_html(float_format=lambda value: f"{value:.4g}"))
+        except ImportError:  # pragma: no cover - without pandas
+            parts.append(f"<pre>{json.dumps(self.results['evaluation']['table1'], indent=1)}</pre>")
+        parts.extend(f"<p>{warning}</p>" for warning in self.warnings)
+        parts.append("</div>")
+        return "".join(parts)
+
+
+def _frame(rows: List[Dict[str, Any]], index: str) -> "pandas.DataFrame":
+    """Rows of scalars as a DataFrame indexed by ``index`` (nested values left out)."""
+    from .dataset import _pandas
+
+    flat = [{key: value for key, value in row.items() if not isinstance(value, (dict, list))} for row in rows]
+    frame: "pandas.DataFrame" = _pandas().DataFrame(flat).set_index(index)
+    return frame
 
 
 def evaluate(
     data: Union[Dataset, PathLike],
-    report: PathLike,
+    report: Optional[PathLike] = None,
     model: Optional[Union[Model, PathLike]] = None,
     *,
     seed: int = 1,
     holdout_fraction: float = DEFAULT_HOLDOUT_FRACTION,
     progress: Optional[Progress] = None,
 ) -> Evaluation:
-    """The paper's analysis on the held-out part of ``data`` (``host-tools evaluate``): the
-    report folder (HTML, Markdown, SVG figures, ``evaluation.json``) and its results. ``model``
-    is the built-in tables when None."""
-    page, warnings = _rollest.evaluate(
-        _data_path(data), os.fspath(report), _model_path(model), seed, holdout_fraction, progress
+    """The paper's analysis on the held-out part of ``data`` (``host-tools evaluate``), with
+    ``model`` (a :class:`Model` or a model folder; the built-in tables when None). The results
+    are returned; the report folder (HTML, Markdown, SVG figures, ``evaluation.json``) is
+    written only with ``report``."""
+    dataset = as_dataset(data)
+    chosen = _as_model(model)
+    folder = None if report is None else os.fspath(report)
+    text, page, warnings = _rollest.evaluate(
+        dataset._native, None if chosen is None else chosen._native, folder, seed, holdout_fraction, progress
     )
-    folder = Path(report)
-    results = json.loads((folder / "evaluation.json").read_text())
-    return Evaluation(results=results, folder=folder, page=Path(page), warnings=list(warnings))
-
-
-@dataclass(frozen=True)
-class Diagnosis:
-    """What :func:`diagnose` wrote: ``results`` (``diagnosis.json``, the contract of
-    ``docs/spec/diagnosis.md``, as a dict), the report folder and its page."""
-
-    results: Dict[str, Any]
-    folder: Path
-    page: Path
-
-    @property
-    def verdict(self) -> str:
-        """``effect`` (an effect is named), ``none`` (the gap is at the noise floor) or
-        ``unattributed`` (a real gap no effect explains): the words of docs/spec/diagnosis.md."""
-        return str(self.results["verdict"])
+    return Evaluation(
+        results=json.loads(text),
+        warnings=list(warnings),
+        folder=None if report is None else Path(report),
+        page=None if page is None else Path(page),
+    )
 
 
 def diagnose(
     real: Union[Dataset, PathLike],
-    report: PathLike,
+    report: Optional[PathLike] = None,
     model: Optional[Union[Model, PathLike]] = None,
     *,
     holdout_fraction: float = DEFAULT_HOLDOUT_FRACTION,
@@ -364,11 +388,17 @@ def diagnose(
 ) -> Diagnosis:
     """The sim-to-real gap of ``real`` against ``model`` (``host-tools diagnose``): where the gap
     lies, which unmodelled effect causes it, how far it shrinks once that effect is added.
-    ``model`` None fits nominal models on the data's training part."""
-    page = _rollest.diagnose(_data_path(real), os.fspath(report), _model_path(model), holdout_fraction, progress)
-    folder = Path(report)
-    results = json.loads((folder / "diagnosis.json").read_text())
-    return Diagnosis(results=results, folder=folder, page=Path(page))
+    ``model`` None fits nominal models on the data's training part. The typed result is
+    returned; the report folder is written only with ``report``."""
+    dataset = as_dataset(real)
+    chosen = _as_model(model)
+    folder = None if report is None else os.fspath(report)
+    text, page = _rollest.diagnose(
+        dataset._native, None if chosen is None else chosen._native, folder, holdout_fraction, progress
+    )
+    return Diagnosis.from_results(
+        json.loads(text), folder=None if report is None else Path(report), page=None if page is None else Path(page)
+    )
 
 
 def _column(columns: Any, name: str) -> np.ndarray:
@@ -377,7 +407,8 @@ def _column(columns: Any, name: str) -> np.ndarray:
         values = columns[name]
     except KeyError:
         raise KeyError(f"run(): expected a column named {name!r}, found none") from None
-    return np.ascontiguousarray(np.asarray(values, dtype=np.float64))
+    # Contiguous and aligned, as the engine reads it in place.
+    return np.require(np.asarray(values, dtype=np.float64), requirements=["C_CONTIGUOUS", "ALIGNED"])
 
 
 class Estimator:
@@ -419,15 +450,21 @@ class Estimator:
         return self._native.step(phi_deg, alpha_deg, cmu_port, cmu_stbd, [float(v) for v in cp], demand)
 
     def run(
-        self, columns: Union[Run, Mapping[str, Any], "pandas.DataFrame"], alpha_deg: Optional[float] = None
-    ) -> Dict[str, np.ndarray]:
+        self,
+        columns: Union[Run, Mapping[str, Any], "pandas.DataFrame"],
+        alpha_deg: Optional[float] = None,
+        *,
+        frame: bool = False,
+    ) -> Any:
         """Steps over a whole run: a :class:`Run`, a DataFrame or a mapping of arrays with
         ``phi_deg``, ``cmu_port``, ``cmu_stbd`` and ``cp01`` .. ``cp12``; the angle of attack from
         an ``alpha_deg`` column, the ``alpha_deg`` argument, or both (the column where finite);
         ``cmu_port_cmd``/``cmu_stbd_cmd`` when recorded (noted after each step, as the replay).
 
         Returns every stage's estimate (float32) and the health fields (uint16), by the replay
-        file's names; the same values, bit for bit, as ``host-tools replay``.
+        file's names; the same values, bit for bit, as ``host-tools replay``. With ``frame``, a
+        DataFrame indexed by the input's ``t_s`` (its index when it is a frame indexed so; else
+        ``k * dt_s``), needs pandas.
         """
         if isinstance(columns, Run):
             arrays: Any = columns.arrays
@@ -444,7 +481,7 @@ class Estimator:
                 raise KeyError("run(): expected a column named 'alpha_deg' or the alpha_deg argument")
         cp = np.ascontiguousarray(np.column_stack([_column(arrays, name) for name in CP_COLUMNS]))
         commands = [_column(arrays, name) if name in arrays else None for name in ("cmu_port_cmd", "cmu_stbd_cmd")]
-        return dict(
+        outputs = dict(
             self._native.run(
                 _column(arrays, "phi_deg"),
                 np.ascontiguousarray(alpha, dtype=np.float64),
@@ -455,3 +492,15 @@ class Estimator:
                 commands[1],
             )
         )
+        if not frame:
+            return outputs
+        from .dataset import _pandas
+
+        pd = _pandas()
+        if "t_s" in arrays:
+            t_s = _column(arrays, "t_s")
+        elif isinstance(arrays, pd.DataFrame) and arrays.index.name == "t_s":
+            t_s = np.asarray(arrays.index, dtype=np.float64)
+        else:
+            t_s = np.arange(len(cp)) * self.dt_s
+        return pd.DataFrame(outputs, index=pd.Index(t_s, name="t_s"))

@@ -10,7 +10,10 @@ import numpy.typing as npt
 from typing_extensions import final
 
 __all__ = [
+    "BlindCampaign",
     "DEFAULT_HOLDOUT_FRACTION",
+    "ForeignCampaign",
+    "__version__",
     "DatasetError",
     "Dataset",
     "ESTIMATE_COLUMNS",
@@ -19,6 +22,7 @@ __all__ = [
     "Model",
     "REPLAY_COLUMNS",
     "RollestError",
+    "dataset_from_parts",
     "diagnose",
     "evaluate",
     "fit",
@@ -33,6 +37,7 @@ REPLAY_COLUMNS: List[str]
 ESTIMATE_COLUMNS: List[str]
 HEALTH_COLUMNS: List[str]
 DEFAULT_HOLDOUT_FRACTION: float
+__version__: str
 
 class RollestError(Exception):
     """A rollest call failed; the message names the file, flag or run, and why."""
@@ -48,8 +53,9 @@ class DatasetError(RollestError):
 @final
 class Dataset:
     @property
-    def path(self) -> str: ...
+    def path(self) -> Optional[str]: ...
     def __len__(self) -> int: ...
+    def write(self, path: str) -> None: ...
     def manifest_json(self) -> str: ...
     def run_arrays(self, index: int) -> Dict[str, npt.NDArray[np.float64]]: ...
 
@@ -59,6 +65,9 @@ class Model:
     def load(path: str) -> Model: ...
     @staticmethod
     def built_in() -> Model: ...
+    @staticmethod
+    def from_files(source: str, files: Sequence[Tuple[str, bytes]], path: Optional[str] = ...) -> Model: ...
+    def files(self) -> List[Tuple[str, bytes]]: ...
     @property
     def source(self) -> str: ...
     @property
@@ -73,6 +82,35 @@ class Model:
     def replay(
         self, dataset: Dataset, faults: Sequence[str] = ..., fault_seed: int = ...
     ) -> List[Dict[str, np.ndarray]]: ...
+
+_Diagnoses = Sequence[Tuple[int, str, float]]
+
+@final
+class BlindCampaign:
+    def __new__(
+        cls,
+        cases: int = ...,
+        seed: int = ...,
+        duration_s: float = ...,
+        classes: Sequence[str] = ...,
+        only: Sequence[int] = ...,
+    ) -> BlindCampaign: ...
+    def ids(self) -> List[int]: ...
+    def draw(self, ids: Sequence[int]) -> List[Tuple[int, Dataset, Model]]: ...
+    def score(
+        self, diagnoses: _Diagnoses, described: str, report: Optional[str] = ...
+    ) -> Tuple[str, Optional[str]]: ...
+
+@final
+class ForeignCampaign:
+    def __new__(cls, dir: str) -> ForeignCampaign: ...
+    @property
+    def seed(self) -> int: ...
+    def fit(self) -> Model: ...
+    def cases(self) -> List[Tuple[int, str]]: ...
+    def score(
+        self, diagnoses: _Diagnoses, described: str, report: Optional[str] = ...
+    ) -> Tuple[str, Optional[str]]: ...
 
 @final
 class Estimator:
@@ -111,21 +149,42 @@ def simulate(
     effects: Sequence[str] = ...,
     progress: Optional[_Progress] = ...,
 ) -> int: ...
+def dataset_from_parts(
+    metadata_json: str, runs: Sequence[Sequence[Tuple[str, npt.NDArray[np.float64]]]]
+) -> Dataset: ...
 def fit(
-    data: str, out: str, seed: int = ..., holdout_fraction: float = ..., progress: Optional[_Progress] = ...
-) -> Model: ...
-def evaluate(
-    data: str,
-    report: str,
-    model: Optional[str] = ...,
+    dataset: Dataset,
+    out: Optional[str] = ...,
     seed: int = ...,
     holdout_fraction: float = ...,
     progress: Optional[_Progress] = ...,
-) -> Tuple[str, List[str]]: ...
-def diagnose(
-    real: str,
-    report: str,
-    model: Optional[str] = ...,
+) -> Model: ...
+def evaluate(
+    dataset: Dataset,
+    model: Optional[Model] = ...,
+    report: Optional[str] = ...,
+    seed: int = ...,
     holdout_fraction: float = ...,
     progress: Optional[_Progress] = ...,
-) -> str: ...
+) -> Tuple[str, Optional[str], List[str]]: ...
+def diagnose(
+    dataset: Dataset,
+    model: Optional[Model] = ...,
+    report: Optional[str] = ...,
+    holdout_fraction: float = ...,
+    progress: Optional[_Progress] = ...,
+) -> Tuple[str, Optional[str]]: ...
+
+# python/src/sindy.rs: PySINDy's STLSQ on the SINDy engine (rollest.sindy.STLSQ wraps it).
+__all__ += ["stlsq"]
+
+def stlsq(
+    theta: npt.NDArray[np.float64],
+    y: npt.NDArray[np.float64],
+    *,
+    threshold: float,
+    alpha: float,
+    max_iter: int,
+    normalize_columns: bool,
+    unbias: bool,
+) -> Tuple[npt.NDArray[np.float64], List[int], List[bool]]: ...

@@ -4,6 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use diagnosis::diagnose::SIGNATURE_FILE;
 use estimator_core::CoefficientSet;
 use firmware_sim::campaign::mix_seed;
 use firmware_sim::fault::{FaultSpec, apply_to_run};
@@ -52,8 +53,53 @@ impl Model {
             files.sort();
         } else {
             files.push((BLOB_FILE.to_owned(), std::fs::read(path).map_err(io(path))?));
+            // The command line's `--model` takes the signature beside a blob too.
+            let beside = path.parent().unwrap_or(Path::new("")).join(SIGNATURE_FILE);
+            if beside.is_file() {
+                files.push((SIGNATURE_FILE.to_owned(), std::fs::read(&beside).map_err(io(&beside))?));
+            }
         }
         Ok(Self { set: Arc::new(set), source: source.to_string(), path: Some(path.to_path_buf()), files })
+    }
+
+    /// A model fitted in memory: `path` is the folder it was also written to, if any.
+    pub(crate) fn fitted(
+        fitted: host_tools::command::model::FittedModel,
+        source: String,
+        path: Option<PathBuf>,
+    ) -> Self {
+        Self { set: Arc::new(fitted.set), source, path, files: fitted.files }
+    }
+
+    /// A model from its coefficient set and diagnosis signature alone (no fit report): what a
+    /// campaign hands to the processes that diagnose its cases.
+    pub(crate) fn from_set(
+        set: CoefficientSet,
+        signature: &diagnosis::diagnose::Signature,
+        source: String,
+    ) -> PyResult<Self> {
+        let blob = model_fit::model::encode(&set).map_err(|error| other_error(&error))?;
+        let signature = serde_json::to_vec_pretty(signature).map_err(|error| other_error(&error))?;
+        let files = vec![(BLOB_FILE.to_owned(), blob), (SIGNATURE_FILE.to_owned(), signature)];
+        Ok(Self { set: Arc::new(set), source, path: None, files })
+    }
+
+    /// The model's diagnosis signature (written by the fit beside the blob), when it has one.
+    pub(crate) fn signature(&self) -> PyResult<Option<diagnosis::diagnose::Signature>> {
+        let Some((_, bytes)) = self.files.iter().find(|(name, _)| name == SIGNATURE_FILE) else { return Ok(None) };
+        serde_json::from_slice(bytes).map(Some).map_err(|error| {
+            crate::error::RollestError::new_err(format!(
+                "{}: expected the model's diagnosis signature (JSON), found: {error}",
+                self.path
+                    .as_deref()
+                    .map_or_else(|| SIGNATURE_FILE.to_owned(), |path| path.join(SIGNATURE_FILE).display().to_string())
+            ))
+        })
+    }
+
+    /// Where it came from, for reports.
+    pub(crate) fn source_name(&self) -> &str {
+        &self.source
     }
 
     fn file(&self, name: &str) -> Option<String> {
@@ -82,6 +128,25 @@ impl Model {
         })
     }
 
+    /// A model from its folder's files (name, bytes), as [`Self::files`] gives them: how a
+    /// model travels to another process (pickling). `path` is where it was read from, if
+    /// anywhere.
+    #[staticmethod]
+    #[pyo3(signature = (source, files, path = None))]
+    fn from_files(source: String, files: Vec<(String, Vec<u8>)>, path: Option<PathBuf>) -> PyResult<Self> {
+        let blob = files
+            .iter()
+            .find(|(name, _)| name == BLOB_FILE)
+            .ok_or_else(|| crate::error::RollestError::new_err(format!("expected a file named {BLOB_FILE}")))?;
+        let set = estimator_core::blob::decode(&blob.1).map_err(|error| other_error(&error))?;
+        Ok(Self { set: Arc::new(set), source, path, files })
+    }
+
+    /// The model folder's files (name, bytes): what [`Self::from_files`] takes.
+    fn files(&self) -> Vec<(String, Vec<u8>)> {
+        self.files.clone()
+    }
+
     /// Where it came from.
     #[getter]
     fn source(&self) -> String {
@@ -100,19 +165,11 @@ impl Model {
         self.set.dt_s
     }
 
-    /// Writes the model folder (every file it was read with; model.bin alone for the built-in
-    /// tables), complete or not at all.
+    /// Writes the model folder (every file it was read or fitted with; model.bin alone for the
+    /// built-in tables), complete or not at all.
     fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         let files = &self.files;
-        let written = py.detach(|| {
-            firmware_sim::atomic::write_folder::<ModelError>(&path, BLOB_FILE, |tmp| {
-                for (name, bytes) in files {
-                    std::fs::write(tmp.join(name), bytes)
-                        .map_err(|source| ModelError::Io { path: path.join(name), source })?;
-                }
-                Ok(())
-            })
-        });
+        let written = py.detach(|| model_fit::fit::card::write_model_files(&path, files));
         written.map_err(|error| other_error(&error))
     }
 
@@ -180,12 +237,5 @@ impl Model {
                 Ok(columns)
             })
             .collect()
-    }
-}
-
-impl Model {
-    /// The model a command wrote into `folder`.
-    pub(crate) fn from_folder(folder: &Path) -> PyResult<Self> {
-        Self::read(folder).map_err(|error| other_error(&error))
     }
 }

@@ -6,12 +6,11 @@
 use std::path::PathBuf;
 
 use host_tools::command::data::{ScenarioArgs, SimulateArgs};
-use host_tools::command::diagnosis::DiagnoseArgs;
-use host_tools::command::model::{EvaluateArgs, FitArgs};
 use host_tools::command::{self, Progress};
 use pyo3::prelude::*;
 use std::sync::Mutex;
 
+use crate::dataset::Dataset;
 use crate::error::command_error;
 use crate::model::Model;
 
@@ -92,58 +91,118 @@ pub fn simulate(
     Ok(callback.finish(summary)?.n_runs)
 }
 
-/// Fits every coefficient on the training part of `data` and writes the model folder `out`.
+/// Fits every coefficient on the training part of `dataset`, in memory; with `out`, the model
+/// folder is written there too (complete or not at all), as `host-tools fit --out` writes it.
 #[pyfunction]
-#[pyo3(signature = (data, out, seed = 1, holdout_fraction = model_fit::fit::split::DEFAULT_HOLDOUT_FRACTION, progress = None))]
+#[pyo3(signature = (dataset, out = None, seed = 1, holdout_fraction = model_fit::fit::split::DEFAULT_HOLDOUT_FRACTION, progress = None))]
 pub fn fit(
     py: Python<'_>,
-    data: PathBuf,
-    out: PathBuf,
+    dataset: &Dataset,
+    out: Option<PathBuf>,
     seed: u64,
     holdout_fraction: f64,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<Model> {
-    let args = FitArgs { data, out, seed, holdout_fraction };
+    let split = split_of(holdout_fraction)?;
+    let origin = dataset.origin();
+    let described = format!("{} (seed {seed})", origin.display());
     let callback = Callback::new(progress);
-    let summary = py.detach(|| command::model::fit(&args, &callback)).map_err(command_error);
-    Model::from_folder(&callback.finish(summary)?.out)
+    let data = &dataset.inner;
+    let fitted = py
+        .detach(|| {
+            let fitted = command::model::fit_loaded(data, &origin, &described, split, &callback)?;
+            if let Some(out) = &out {
+                callback.stage("writing the model folder", None);
+                model_fit::fit::card::write_model_files(out, &fitted.files)?;
+            }
+            Ok::<_, command::CommandError>(fitted)
+        })
+        .map_err(command_error);
+    let fitted = callback.finish(fitted)?;
+    let source = match &out {
+        Some(out) => model_fit::model::ModelSource::File(out.join(model_fit::model::BLOB_FILE)).to_string(),
+        None => format!("the fit of {described}, in memory"),
+    };
+    Ok(Model::fitted(fitted, source, out))
 }
 
 /// The paper's analysis of `model` (the built-in tables when None) on the held-out part of
-/// `data`, written into the report folder `report`; returns the report's page and the
-/// evaluation's warnings.
+/// `dataset`: `evaluation.json` as text, and with `report` the report folder written there
+/// (its page returned); the evaluation's warnings.
 #[pyfunction]
-#[pyo3(signature = (data, report, model = None, seed = 1, holdout_fraction = model_fit::fit::split::DEFAULT_HOLDOUT_FRACTION, progress = None))]
+#[pyo3(signature = (dataset, model = None, report = None, seed = 1, holdout_fraction = model_fit::fit::split::DEFAULT_HOLDOUT_FRACTION, progress = None))]
 pub fn evaluate(
     py: Python<'_>,
-    data: PathBuf,
-    report: PathBuf,
-    model: Option<PathBuf>,
+    dataset: &Dataset,
+    model: Option<&Model>,
+    report: Option<PathBuf>,
     seed: u64,
     holdout_fraction: f64,
     progress: Option<Py<PyAny>>,
-) -> PyResult<(PathBuf, Vec<String>)> {
-    let args = EvaluateArgs { data, model, report, seed, holdout_fraction };
+) -> PyResult<(String, Option<PathBuf>, Vec<String>)> {
+    let split = split_of(holdout_fraction)?;
+    let origin = dataset.origin();
+    let built_in = estimator_core::coeffs::DEFAULT;
+    let (set, source) = match model {
+        Some(model) => (&*model.set, model.source_name().to_owned()),
+        None => (&built_in, model_fit::model::ModelSource::BuiltIn.to_string()),
+    };
     let callback = Callback::new(progress);
-    let summary = py.detach(|| command::model::evaluate(&args, &callback)).map_err(command_error);
-    let summary = callback.finish(summary)?;
-    Ok((summary.report, summary.warnings))
+    let data = &dataset.inner;
+    let evaluated = py
+        .detach(|| {
+            let evaluated = command::model::evaluate_loaded(data, &origin, set, &source, seed, split, &callback)?;
+            if let Some(folder) = &report {
+                reports::write_report(folder, &evaluated.report, "evaluation.json", &evaluated.json)
+                    .map_err(command::CommandError::write(folder))?;
+            }
+            Ok::<_, command::CommandError>(evaluated)
+        })
+        .map_err(command_error);
+    let evaluated = callback.finish(evaluated)?;
+    let json = serde_json::to_string(&evaluated.json).map_err(|error| crate::error::other_error(&error))?;
+    Ok((json, report.map(|folder| folder.join("report.html")), evaluated.warnings))
 }
 
-/// The sim-to-real gap diagnosis of `real` against `model` (nominal models fitted on the data's
-/// training part when None), written into the report folder `report`; returns the page.
+/// The sim-to-real gap diagnosis of `dataset` against `model` (nominal models fitted on the
+/// data's training part when None) with the model's own diagnosis signature (the built-in
+/// model's when it has none): `diagnosis.json` as text, and with `report` the report folder
+/// written there (its page returned).
 #[pyfunction]
-#[pyo3(signature = (real, report, model = None, holdout_fraction = model_fit::fit::split::DEFAULT_HOLDOUT_FRACTION, progress = None))]
+#[pyo3(signature = (dataset, model = None, report = None, holdout_fraction = model_fit::fit::split::DEFAULT_HOLDOUT_FRACTION, progress = None))]
 pub fn diagnose(
     py: Python<'_>,
-    real: PathBuf,
-    report: PathBuf,
-    model: Option<PathBuf>,
+    dataset: &Dataset,
+    model: Option<&Model>,
+    report: Option<PathBuf>,
     holdout_fraction: f64,
     progress: Option<Py<PyAny>>,
-) -> PyResult<PathBuf> {
-    let args = DiagnoseArgs { real, model, report, holdout_fraction };
+) -> PyResult<(String, Option<PathBuf>)> {
+    let split = split_of(holdout_fraction)?;
+    let origin = dataset.origin();
+    let signature = model.map(Model::signature).transpose()?.flatten();
+    let sim = model.map(|model| (&*model.set, model.source_name().to_owned()));
     let callback = Callback::new(progress);
-    let summary = py.detach(|| command::diagnosis::diagnose(&args, &callback)).map_err(command_error);
-    Ok(callback.finish(summary)?.report)
+    let data = &dataset.inner;
+    let diagnosed = py
+        .detach(|| {
+            let (diagnosis, page) =
+                command::diagnosis::diagnose_loaded(data, &origin, sim, signature, split, &callback)?;
+            let json = serde_json::to_value(&diagnosis)
+                .map_err(|error| command::CommandError::write(report.as_deref().unwrap_or(&origin))(error.into()))?;
+            if let Some(folder) = &report {
+                reports::write_report(folder, &page, "diagnosis.json", &json)
+                    .map_err(command::CommandError::write(folder))?;
+            }
+            Ok::<_, command::CommandError>(json)
+        })
+        .map_err(command_error);
+    let json = callback.finish(diagnosed)?;
+    let text = serde_json::to_string(&json).map_err(|error| crate::error::other_error(&error))?;
+    Ok((text, report.map(|folder| folder.join("report.html"))))
+}
+
+/// The split of a holdout fraction, or the command line's error for it.
+fn split_of(holdout_fraction: f64) -> PyResult<model_fit::fit::split::Split> {
+    command::holdout_split(holdout_fraction).map_err(command_error)
 }
