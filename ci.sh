@@ -36,10 +36,6 @@ setup() {
     # numpy and scipy run the second, independent tunnel of the `foreign` job (tools/foreign-tunnel).
     python3 -c "import numpy, scipy" 2>/dev/null \
         || python3 -m pip install --quiet --disable-pip-version-check -r tools/foreign-tunnel/requirements.txt
-    # The `python` job's virtual environment: pytest, pandas and mypy for the rollest package's
-    # suite (the package itself is installed there by that job, as the README says).
-    [ -x "$VENV/bin/python" ] || python3 -m venv "$VENV"
-    "$VENV/bin/pip" install --quiet --disable-pip-version-check -r python/requirements-test.txt
 }
 
 fmt() { cargo fmt --all -- --check; }
@@ -71,11 +67,28 @@ nostd() {
 # command line, its type stubs against the built module (mypy's stubtest), the wrappers typed.
 python() {
     test_binary
-    # The extension in the dev profile, which the test profile is: it reuses the test job's
-    # compiled crates where their features agree, instead of a third build of the workspace (the
-    # README's install builds the release wheel; the code is the same).
-    MATURIN_PEP517_ARGS="--profile dev" "$VENV/bin/pip" install --quiet --disable-pip-version-check ./python
+    # A clean virtual environment each time, as a user's: the wheel and the suite's requirements
+    # (pytest, pandas, mypy, PySINDy, matplotlib, h5py, nbmake, Dask's distributed).
+    rm -rf "$VENV"
+    python3 -m venv "$VENV"
+    local pip=("$VENV/bin/pip" --quiet --disable-pip-version-check)
+    # One abi3 wheel, built by maturin through pip's PEP 517 build (what `pip install ./python`
+    # runs), in the dev profile, which the test profile is: it reuses the test job's compiled
+    # crates where their features agree, instead of a third build of the workspace (the README's
+    # install builds the release wheel; the code is the same).
+    local wheels="${CARGO_TARGET_DIR:-target}/wheels"
+    rm -rf "$wheels"
+    MATURIN_PEP517_ARGS="--profile dev" "${pip[@]}" wheel --no-deps ./python -w "$wheels"
+    "${pip[@]}" install "$wheels"/rollest-*-abi3-*.whl -r python/requirements-test.txt
     "$VENV/bin/pytest" -q python/tests
+    # The example notebook, executed cell by cell (nbmake): simulate, fit, evaluate, plot,
+    # diagnose; its three figures are written as SVG files, which must not be empty.
+    local figures="${CARGO_TARGET_DIR:-target}/notebook-figures"
+    rm -rf "$figures"
+    ROLLEST_FIGURES="$(pwd)/$figures" "$VENV/bin/pytest" -q --nbmake python/examples/notebook.ipynb
+    for figure in measured_vs_estimated heldout_error_per_alpha gap_location; do
+        [ -s "$figures/$figure.svg" ] || { echo "the notebook wrote no $figures/$figure.svg" >&2; exit 1; }
+    done
     (cd "$VENV" && bin/python -m mypy.stubtest rollest._rollest)
     "$VENV/bin/python" -m mypy --strict --no-incremental python/rollest
 }
