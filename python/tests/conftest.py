@@ -44,3 +44,18 @@ def campaign(tmp_path_factory: pytest.TempPathFactory) -> rollest.Dataset:
 def model(campaign: rollest.Dataset, tmp_path_factory: pytest.TempPathFactory) -> rollest.Model:
     """The model fitted on the campaign, in-process."""
     return rollest.fit(campaign, tmp_path_factory.mktemp("models") / "model")
+
+
+def rebuilt(dataset: rollest.Dataset, runs: list, **changes: object) -> rollest.Dataset:
+    """``dataset`` built again in memory from ``runs`` (its arrays, changed or not) and its
+    metadata, with ``changes`` to the arguments of ``Dataset.from_arrays``."""
+    arguments: dict = dict(
+        kind=[run.kind for run in dataset.runs],
+        alpha_deg=[run.alpha_deg for run in dataset.runs],
+        u_inf_mps=dataset.tunnel["u_inf_mps"],
+        rho_kgm3=dataset.tunnel["rho_kgm3"],
+        wing=dataset.wing,
+        files=[run.file for run in dataset.runs],
+    )
+    arguments.update(changes)
+    return rollest.Dataset.from_arrays(runs, **arguments)

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import rollest
+from conftest import rebuilt
 
 pytest.importorskip("pandas")
 h5py = pytest.importorskip("h5py")
@@ -116,23 +117,13 @@ def test_a_recording_reads_as_the_balance_readings_given_directly_and_fits(
     acquisition: ModuleType, mat_file: Path, campaign: rollest.Dataset
 ) -> None:
     # The same readings given to the format directly (the balance in N m as `mx_nm`), not the
-    # campaign itself: Mx / (q S b) rounds cl in its last bit on about one sample in seven, and
-    # the fit's nonlinear blocks carry that into the coefficients' sixth digit.
+    # campaign itself: Mx / (q S b) rounds cl in its last bit on about one sample in seven.
     readings = []
     for run in campaign.runs:
         columns = {name: values for name, values in run.arrays.items() if name != "cl"}
         columns["mx_nm"] = run.arrays["cl"] * q_s_b(campaign)
         readings.append(columns)
-    given = rollest.Dataset.from_arrays(
-        readings,
-        kind=[run.kind for run in campaign.runs],
-        alpha_deg=[run.alpha_deg for run in campaign.runs],
-        u_inf_mps=campaign.tunnel["u_inf_mps"],
-        rho_kgm3=campaign.tunnel["rho_kgm3"],
-        sample_hz=[run.sample_hz for run in campaign.runs],
-        wing=campaign.wing,
-        files=[run.file for run in campaign.runs],
-    )
+    given = rebuilt(campaign, readings, sample_hz=[run.sample_hz for run in campaign.runs])
     read = acquisition.read_mat(mat_file, wing=campaign.wing)
     # The same readings, bit for bit, make the same model (the fit is deterministic): one fit
     # of the recording, checked against the readings' arrays, instead of a second fit.

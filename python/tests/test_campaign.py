@@ -14,7 +14,7 @@ import pytest
 import rollest
 from rollest.campaign import diagnose_case
 
-from conftest import cli
+from conftest import cli, rebuilt
 
 #: A small slice of a campaign of this project's tunnel: a clean case and a delay, short runs.
 SLICE = dict(cases=14, seed=5, duration_s=10.0, only=[0, 1])
@@ -111,12 +111,5 @@ def test_arrays_from_out_of_band_buffers_are_read_whatever_their_alignment(campa
             columns[name] = shifted
         unaligned.append(columns)
     assert not unaligned[0]["cl"].flags.aligned
-    built = rollest.Dataset.from_arrays(
-        unaligned,
-        kind=[run.kind for run in campaign.runs],
-        alpha_deg=[run.alpha_deg for run in campaign.runs],
-        u_inf_mps=campaign.tunnel["u_inf_mps"],
-        rho_kgm3=campaign.tunnel["rho_kgm3"],
-        wing=campaign.wing,
-    )
+    built = rebuilt(campaign, unaligned)
     assert all(np.array_equal(a.arrays["cl"], b.arrays["cl"], equal_nan=True) for a, b in zip(built.runs, campaign.runs))

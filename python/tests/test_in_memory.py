@@ -11,25 +11,12 @@ import numpy as np
 import pytest
 
 import rollest
+from conftest import rebuilt
 
 
 
 def arrays_of(dataset: rollest.Dataset) -> list:
     return [dict(run.arrays) for run in dataset.runs]
-
-
-def rebuilt(dataset: rollest.Dataset, runs: list, **changes: object) -> rollest.Dataset:
-    """``dataset`` built again from ``runs`` (its arrays, changed or not) and its metadata."""
-    arguments: dict = dict(
-        kind=[run.kind for run in dataset.runs],
-        alpha_deg=[run.alpha_deg for run in dataset.runs],
-        u_inf_mps=dataset.tunnel["u_inf_mps"],
-        rho_kgm3=dataset.tunnel["rho_kgm3"],
-        wing=dataset.wing,
-        files=[run.file for run in dataset.runs],
-    )
-    arguments.update(changes)
-    return rollest.Dataset.from_arrays(runs, **arguments)
 
 
 def test_a_dataset_from_arrays_writes_and_reads_back_bit_for_bit(campaign, tmp_path):
