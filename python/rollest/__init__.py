@@ -36,6 +36,7 @@ from . import sindy
 from .campaign import Validation, validate_diagnosis
 from .dataset import Dataset, PathLike, Run, as_dataset, load_dataset
 from .diagnosis import Diagnosis
+from .closed_loop import SilPoint, SilResult, SilSweep, sil, sil_sweep
 
 if TYPE_CHECKING:  # pragma: no cover
     import pandas
@@ -53,12 +54,17 @@ __all__ = [
     "REPLAY_COLUMNS",
     "RollestError",
     "Run",
+    "SilPoint",
+    "SilResult",
+    "SilSweep",
     "Validation",
     "diagnose",
     "evaluate",
     "fit",
     "heldout_start",
     "load_dataset",
+    "sil",
+    "sil_sweep",
     "simulate",
     "validate_diagnosis",
 ]

@@ -175,6 +175,25 @@ def diagnose(
     progress: Optional[_Progress] = ...,
 ) -> Tuple[str, Optional[str]]: ...
 
+# python/src/sil.rs: one scenario in closed loop (rollest.sil and rollest.sil_sweep wrap it).
+__all__ += ["sil"]
+
+def sil(
+    model: Optional[Model] = ...,
+    scenario_toml: Optional[str] = ...,
+    scenario_name: Optional[str] = ...,
+    seed: Optional[int] = ...,
+    duration_s: Optional[float] = ...,
+    effects: List[str] = ...,
+    faults: List[str] = ...,
+    tune: bool = ...,
+    tune_seed: Optional[int] = ...,
+    causality_tau_s: Optional[float] = ...,
+    kp: Optional[float] = ...,
+    ki: Optional[float] = ...,
+    progress: Optional[_Progress] = ...,
+) -> str: ...
+
 # python/src/sindy.rs: PySINDy's STLSQ on the SINDy engine (rollest.sindy.STLSQ wraps it).
 __all__ += ["stlsq"]
 

@@ -1,7 +1,7 @@
-"""Blind validation campaigns of the diagnosis over any :class:`concurrent.futures.Executor`:
-local processes on every core by default, or a cluster's (Dask ``distributed``:
-``Client(...).get_executor()``; Ray's ``ray.util.multiprocessing.Pool`` through an executor
-adapter).
+"""Blind validation campaigns of the diagnosis over any :class:`concurrent.futures.Executor`
+(:mod:`rollest.executors`): local processes on every core by default, or a cluster's (Dask
+``distributed``: ``Client(...).get_executor()``; Ray's ``ray.util.multiprocessing.Pool``
+through an executor adapter).
 
 The coordinating process draws each case (this project's tunnel) or reads each case's recording
 (a campaign written by another program), and sends the workers only the blind recording and the
@@ -14,25 +14,21 @@ thousands of cases; one machine diagnoses about ten a minute.
 from __future__ import annotations
 
 import json
-import multiprocessing
 import os
 import time
-from concurrent.futures import FIRST_COMPLETED, Executor, Future, ProcessPoolExecutor, wait
+from concurrent.futures import Executor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Dict, Iterator, List, Optional, Sequence, Set, Tuple
+from typing import TYPE_CHECKING, Any, Dict, Iterator, List, Optional, Sequence, Tuple
 
 from . import _rollest
 from .dataset import Dataset, PathLike, load_dataset
+from .executors import CampaignProgress, default_in_flight, local_executor, run_bounded
 
 if TYPE_CHECKING:  # pragma: no cover
     import pandas
 
     from . import Model
-
-#: ``progress(done, total)``, called in the coordinating process as each diagnosis comes back.
-CampaignProgress = Callable[[int, int], object]
-
 
 @dataclass(frozen=True)
 class Validation:
@@ -76,23 +72,6 @@ def diagnose_case(dataset: Dataset, model: "Model") -> Tuple[str, float]:
     return text, time.perf_counter() - started
 
 
-def _one_thread_each() -> None:
-    """Initializer of the default local workers: one engine thread per process (as many
-    processes as cores), so the processes do not oversubscribe the cores."""
-    os.environ["RAYON_NUM_THREADS"] = "1"
-
-
-def local_executor(max_workers: Optional[int] = None) -> ProcessPoolExecutor:
-    """Local processes on every core (``max_workers`` when given), started fresh (``spawn``:
-    the engine's threads do not survive a ``fork``). A script that uses it guards its entry
-    point with ``if __name__ == "__main__":``, as every ``spawn`` pool requires."""
-    return ProcessPoolExecutor(
-        max_workers=max_workers or os.cpu_count() or 1,
-        mp_context=multiprocessing.get_context("spawn"),
-        initializer=_one_thread_each,
-    )
-
-
 def validate_diagnosis(
     campaign: Optional[PathLike] = None,
     *,
@@ -124,7 +103,7 @@ def validate_diagnosis(
     """
     own = executor is None
     pool: Executor = local_executor() if executor is None else executor
-    in_flight = max_in_flight or 2 * (os.cpu_count() or 1)
+    in_flight = default_in_flight(max_in_flight)
     started = time.perf_counter()
     try:
         if campaign is not None:
@@ -177,22 +156,5 @@ def _diagnose_all(
     progress: Optional[CampaignProgress],
 ) -> List[Tuple[int, str, float]]:
     """Every case's diagnosis (id, ``diagnosis.json`` text, seconds), at most ``in_flight`` out."""
-    pending: Dict[Future[Tuple[str, float]], int] = {}
-    done: List[Tuple[int, str, float]] = []
-
-    def collect(finished: Set[Future[Tuple[str, float]]]) -> None:
-        for future in finished:
-            text, seconds = future.result()
-            done.append((pending.pop(future), text, seconds))
-            if progress is not None:
-                progress(len(done), total)
-
-    for id, dataset, model in work:
-        while len(pending) >= in_flight:
-            finished, _ = wait(set(pending), return_when=FIRST_COMPLETED)
-            collect(finished)
-        pending[pool.submit(diagnose_case, dataset, model)] = id
-    while pending:
-        finished, _ = wait(set(pending), return_when=FIRST_COMPLETED)
-        collect(finished)
-    return sorted(done)
+    units = ((id, diagnose_case, (dataset, model)) for id, dataset, model in work)
+    return [(id, text, seconds) for id, (text, seconds) in run_bounded(pool, units, total, in_flight, progress)]

@@ -9,13 +9,13 @@ use pyo3::exceptions::PyException;
 use pyo3::prelude::*;
 
 pyo3::create_exception!(
-    _rollest,
+    rollest._rollest,
     RollestError,
     PyException,
     "A rollest call failed; the message names the file, flag or run, and why."
 );
 pyo3::create_exception!(
-    _rollest,
+    rollest._rollest,
     DatasetError,
     RollestError,
     "A dataset could not be read or written. Attributes: `file` (path or None), `row` (1-based, \

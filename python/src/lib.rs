@@ -14,6 +14,7 @@ mod dataset;
 mod error;
 mod estimator;
 mod model;
+mod sil;
 mod sindy;
 mod workflow;
 
@@ -37,6 +38,7 @@ fn _rollest(module: &Bound<'_, PyModule>) -> PyResult<()> {
     module.add_function(wrap_pyfunction!(workflow::fit, module)?)?;
     module.add_function(wrap_pyfunction!(workflow::evaluate, module)?)?;
     module.add_function(wrap_pyfunction!(workflow::diagnose, module)?)?;
+    module.add_function(wrap_pyfunction!(sil::sil, module)?)?;
     module.add_function(wrap_pyfunction!(sindy::stlsq, module)?)?;
     module.add("REPLAY_COLUMNS", model_fit::replay::REPLAY_COLUMNS.to_vec())?;
     module.add("ESTIMATE_COLUMNS", model_fit::replay::ESTIMATE_COLUMNS.to_vec())?;

@@ -19,7 +19,7 @@ use crate::model::Model;
 /// done calls it again with the count so far. The commands run on worker threads without the
 /// GIL; each call takes it. The first exception the callable raises is kept, and raised when
 /// the command returns.
-struct Callback {
+pub(crate) struct Callback {
     callable: Option<Py<PyAny>>,
     /// The present stage: message, steps done, steps in all.
     stage: Mutex<(String, u64, Option<u64>)>,
@@ -27,7 +27,7 @@ struct Callback {
 }
 
 impl Callback {
-    fn new(callable: Option<Py<PyAny>>) -> Self {
+    pub(crate) fn new(callable: Option<Py<PyAny>>) -> Self {
         Self { callable, stage: Mutex::new((String::new(), 0, None)), raised: Mutex::new(None) }
     }
 
@@ -42,7 +42,7 @@ impl Callback {
     }
 
     /// The command's result, or the callable's first exception.
-    fn finish<T>(self, result: PyResult<T>) -> PyResult<T> {
+    pub(crate) fn finish<T>(self, result: PyResult<T>) -> PyResult<T> {
         match self.raised.into_inner().unwrap_or_else(std::sync::PoisonError::into_inner) {
             Some(error) => Err(error),
             None => result,

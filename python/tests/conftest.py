@@ -46,6 +46,16 @@ def model(campaign: rollest.Dataset, tmp_path_factory: pytest.TempPathFactory) -
     return rollest.fit(campaign, tmp_path_factory.mktemp("models") / "model")
 
 
+@pytest.fixture(scope="session")
+def dask_executor():
+    """The executor of a Dask ``LocalCluster`` with two worker processes, one thread each
+    (started once: the campaign and the SIL sweep tests share it)."""
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        with distributed.Client(cluster) as client:
+            yield client.get_executor()
+
+
 def rebuilt(dataset: rollest.Dataset, runs: list, **changes: object) -> rollest.Dataset:
     """``dataset`` built again in memory from ``runs`` (its arrays, changed or not) and its
     metadata, with ``changes`` to the arguments of ``Dataset.from_arrays``."""

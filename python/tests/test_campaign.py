@@ -66,11 +66,8 @@ def test_a_campaign_sends_out_only_blind_recordings_and_scores_as_the_command_li
         assert case["shrink"] == pytest.approx(expected[0]["shrink"], rel=1e-12)
 
 
-def test_a_dask_cluster_scores_every_case_as_the_local_processes(local_run):
-    distributed = pytest.importorskip("distributed")
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
-        with distributed.Client(cluster) as client:
-            validation = rollest.validate_diagnosis(**SLICE, executor=client.get_executor())
+def test_a_dask_cluster_scores_every_case_as_the_local_processes(local_run, dask_executor):
+    validation = rollest.validate_diagnosis(**SLICE, executor=dask_executor)
     assert len(local_run.results["cases"]) == len(SLICE["only"])
     assert by_id(validation) == by_id(local_run)
     timeless = lambda summary: {k: v for k, v in summary.items() if k != "median_diagnosis_s"}  # noqa: E731
@@ -113,3 +110,11 @@ def test_arrays_from_out_of_band_buffers_are_read_whatever_their_alignment(campa
     assert not unaligned[0]["cl"].flags.aligned
     built = rebuilt(campaign, unaligned)
     assert all(np.array_equal(a.arrays["cl"], b.arrays["cl"], equal_nan=True) for a, b in zip(built.runs, campaign.runs))
+
+
+def test_errors_raised_in_workers_come_back_with_their_attributes():
+    error = rollest.DatasetError("runs/roll_a20.csv: column cp03: expected a number")
+    error.file, error.row, error.column, error.key = "runs/roll_a20.csv", 7, "cp03", None
+    again = pickle.loads(pickle.dumps(error))
+    assert type(again) is rollest.DatasetError and isinstance(again, rollest.RollestError)
+    assert (again.args, again.file, again.row, again.column, again.key) == (error.args, "runs/roll_a20.csv", 7, "cp03", None)

@@ -3,24 +3,13 @@
 
 use std::path::Path;
 
-use firmware_sim::sil::{Mode, SilResults, TunePoint};
+use firmware_sim::sil::{Mode, SilContext, SilRecord, SilResults};
 
 use reports::plot::{Axes, Series, svg};
 use reports::{Figure, Report, Section, Table, write_report};
 
 /// The JSON file of a SIL report.
 pub const JSON_FILE: &str = "sil.json";
-
-/// How the results were produced, for the report's introduction and JSON.
-#[derive(Debug, Clone, PartialEq)]
-pub struct SilContext {
-    /// The coefficient set's source.
-    pub model: String,
-    /// The scenario's source (file or defaults) and overrides.
-    pub scenario: String,
-    /// The gain search, when `--tune` ran (best first), with its seed.
-    pub tuning: Option<(u64, Vec<TunePoint>)>,
-}
 
 /// Percentage with one decimal.
 fn percent(value: f64) -> String {
@@ -292,32 +281,8 @@ pub fn verdict(results: &SilResults) -> String {
     )
 }
 
-/// The JSON of a SIL report: every number.
-#[must_use]
-pub fn sil_json(results: &SilResults, context: &SilContext) -> serde_json::Value {
-    let reductions: Vec<serde_json::Value> = results
-        .alphas_deg()
-        .iter()
-        .map(|&alpha| {
-            let mut row = serde_json::Map::new();
-            row.insert("alpha_deg".into(), alpha.into());
-            for mode in Mode::ALL {
-                row.insert(mode.name().into(), results.reduction(alpha, mode).into());
-            }
-            serde_json::Value::Object(row)
-        })
-        .collect();
-    serde_json::json!({
-        "model": context.model,
-        "scenario": context.scenario,
-        "metric": "noise-free aerodynamic roll moment of the synthetic tunnel (cl_aero), after the warm-up",
-        "results": results,
-        "rms_reduction": reductions,
-        "tuning": context.tuning.as_ref().map(|(seed, points)| serde_json::json!({ "seed": seed, "points": points })),
-    })
-}
-
 /// Writes the report folder `dir` (report.md, report.html, SVG plots, `sil.json`).
 pub fn write_sil_report(dir: &Path, results: &SilResults, context: &SilContext) -> std::io::Result<()> {
-    write_report(dir, &sil_report(results, context), JSON_FILE, &sil_json(results, context))
+    let record = serde_json::to_value(SilRecord::new(results, context)).map_err(std::io::Error::other)?;
+    write_report(dir, &sil_report(results, context), JSON_FILE, &record)
 }

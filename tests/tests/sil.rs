@@ -102,7 +102,7 @@ fn sil_report_folder_holds_tables_plots_and_json() {
     let scenario = Scenario { seed: 11, duration_s: 2.0, alphas_deg: vec![20.0], ..Scenario::default() };
     let settings = SilSettings { warmup_s: 0.5, trace_every: 10 };
     let results = run_scenario(&scenario, &DEFAULT, &Mode::ALL, &settings, &|| {}).unwrap();
-    let context = rigs::sil::SilContext { model: "built-in".into(), scenario: "test".into(), tuning: None };
+    let context = firmware_sim::sil::SilContext { model: "built-in".into(), scenario: "test".into(), tuning: None };
     let root = tempfile::tempdir().unwrap();
     let dir = root.path().join("sil");
     rigs::sil::write_sil_report(&dir, &results, &context).unwrap();

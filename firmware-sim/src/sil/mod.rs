@@ -23,6 +23,10 @@ use estimator_core::{CoefficientSet, Estimator, Health, Input};
 use rayon::prelude::*;
 use serde::Serialize;
 
+mod record;
+
+pub use record::{METRIC, SilContext, SilRecord, Tuning};
+
 use crate::campaign::{Scenario, ScenarioError, mix_seed};
 use crate::fault::{FaultInjector, FaultSpec};
 use crate::tunnel::excitation::HoldSequence;

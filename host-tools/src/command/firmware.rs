@@ -8,6 +8,7 @@ use firmware_sim::campaign::Scenario;
 use firmware_sim::fault::FaultSpec;
 use firmware_sim::sil::SilResults;
 
+use super::closed_loop::{ClosedLoop, GainArgs, closed_loop};
 use super::data::ScenarioArgs;
 use super::{CommandError, Progress, run_named};
 use rigs::hil::HilRun;
@@ -26,21 +27,9 @@ pub struct SilArgs {
     /// The scenario and its overrides.
     #[command(flatten)]
     pub scenario: ScenarioArgs,
-    /// Choose the feedback and causality gains by a grid search at another seed first.
-    #[arg(long)]
-    pub tune: bool,
-    /// Seed of the gain search (default: the report's seed + 1).
-    #[arg(long = "tune-seed")]
-    pub tune_seed: Option<u64>,
-    /// Causality filter time constant T_F, s (overrides the model's).
-    #[arg(long = "causality-tau-s")]
-    pub causality_tau_s: Option<f64>,
-    /// Proportional feedback gain (overrides the model's).
-    #[arg(long)]
-    pub kp: Option<f64>,
-    /// Integral feedback gain, 1/s (overrides the model's).
-    #[arg(long)]
-    pub ki: Option<f64>,
+    /// How the controller's gains are chosen.
+    #[command(flatten)]
+    pub gains: GainArgs,
     /// Inject a sensor fault into every run (repeatable), e.g. `dead:cp03@5s`, `drop:cl=0.2`.
     #[arg(long = "fault", value_name = "SPEC")]
     pub faults: Vec<FaultSpec>,
@@ -128,38 +117,14 @@ impl fmt::Display for SilSummary {
 
 /// `sil`: the controller scenarios in closed loop with the synthetic tunnel, as a report folder.
 pub fn sil(args: &SilArgs, progress: &dyn Progress) -> Result<SilSummary, CommandError> {
-    use firmware_sim::sil::{Gains, Mode, SilSettings, TuneGrid, run_scenario_with_faults, tune};
     let started = Instant::now();
     let default = Scenario { duration_s: 20.0, ..Scenario::default() };
     let (scenario, described) = args.scenario.resolve(default, "the paper's campaign, 20 s per run")?;
     let (model_set, source) = model_fit::model::load(args.model.as_deref())?;
-    let settings = SilSettings::default();
-    let mut tuning = None;
-    let mut gains = Gains::of(&model_set);
-    if args.tune {
-        let tune_seed = args.tune_seed.unwrap_or(scenario.seed.wrapping_add(1));
-        let tune_scenario = Scenario { seed: tune_seed, ..scenario.clone() };
-        let grid = TuneGrid::default();
-        progress.stage("gain search", Some(grid.len() as u64));
-        let points = tune(&tune_scenario, &model_set, &grid, &settings, &|| progress.step())?;
-        if let Some(best) = points.first() {
-            gains = best.gains;
-        }
-        tuning = Some((tune_seed, points));
-    }
-    gains.causality_tau_s = args.causality_tau_s.unwrap_or(gains.causality_tau_s);
-    gains.feedback_kp = args.kp.unwrap_or(gains.feedback_kp);
-    gains.feedback_ki = args.ki.unwrap_or(gains.feedback_ki);
-    let set = gains.apply(&model_set)?;
-    let n_runs = scenario.alphas_deg.len() * Mode::ALL.len();
-    progress.stage("closed-loop runs", Some(n_runs as u64));
-    let results = run_scenario_with_faults(&scenario, &set, &Mode::ALL, &settings, &args.faults, &|| progress.step())?;
+    let source = source.to_string();
+    let ClosedLoop { results, context } =
+        closed_loop(&scenario, &described, (&model_set, &source), &args.gains, &args.faults, progress)?;
     progress.stage("writing the report", None);
-    let mut described = described;
-    for fault in &args.faults {
-        described.push_str(&format!(", fault {fault}"));
-    }
-    let context = rigs::sil::SilContext { model: source.to_string(), scenario: described, tuning };
     rigs::sil::write_sil_report(&args.report, &results, &context).map_err(CommandError::write(&args.report))?;
     Ok(SilSummary { results, report: args.report.join("report.html"), elapsed_s: started.elapsed().as_secs_f64() })
 }

@@ -7,6 +7,7 @@
 //! The layout follows ripgrep's split of a thin `main.rs` from its flags and its search
 //! functions (`crates/core/main.rs`, `crates/core/flags/`).
 
+pub mod closed_loop;
 pub mod data;
 pub mod diagnosis;
 #[cfg(feature = "rigs")]
