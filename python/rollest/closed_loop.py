@@ -127,19 +127,17 @@ class SilResult:
 
     def _repr_html_(self) -> str:
         """A notebook shows the RMS reduction per alpha and mode."""
-        rows = "".join(
-            "<tr>" + "".join(f"<td>{_cell(row[key])}</td>" for key in ("alpha_deg", *MODES)) + "</tr>"
-            for row in self.record["rms_reduction"]
-        )
-        header = "".join(f"<th>{key}</th>" for key in ("alpha (deg)", *MODES))
+        try:
+            from .dataset import _pandas
+
+            table = _pandas().DataFrame(self.record["rms_reduction"]).set_index("alpha_deg")[list(MODES)]
+            body = table.to_html(float_format=lambda value: f"{value:.3g}", na_rep="")
+        except ImportError:  # pragma: no cover - without pandas
+            body = f"<pre>{json.dumps(self.record['rms_reduction'], indent=1)}</pre>"
         return (
             f"<div><p><b>SIL</b>, seed {self.seed}: {self.record['scenario']}; RMS reduction of C_l against no "
-            f"control</p><table><tr>{header}</tr>{rows}</table></div>"
+            f"control</p>{body}</div>"
         )
-
-
-def _cell(value: Any) -> str:
-    return "" if value is None else f"{value:.3g}"
 
 
 def sil(model: Optional["Model"] = None, point: Optional[SilPoint] = None, progress: Optional["Progress"] = None) -> SilResult:

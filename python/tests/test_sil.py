@@ -67,7 +67,9 @@ def test_a_dask_cluster_gives_every_point_as_the_local_processes(local_sweep, po
 
 
 def test_one_point_in_process_is_the_sweeps(local_sweep, points):
-    assert rollest.sil(point=points[0]).record == local_sweep.results[0].record
+    one = rollest.sil(point=points[0])
+    assert one.record == local_sweep.results[0].record
+    assert "ff_fb_coupled" in one._repr_html_()
 
 
 def test_a_bad_fault_or_scenario_is_named(tmp_path):
